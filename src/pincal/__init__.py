@@ -1,0 +1,79 @@
+"""pincal: kinematic calibration of robot arms on Pinocchio.
+
+Load a robot, read or simulate measurements, calibrate, read the report::
+
+    import pincal
+    robot = pincal.load_robot("ur5")
+    truth, fit, test = pincal.simulate(robot, n_fit=60, n_test=100, seed=0)
+    cal = pincal.calibrate(robot, fit, model="placements", test=test)
+    print(pincal.summary(cal))
+"""
+
+from .crossval import CrossValidation, cross_validate
+from .data import Dataset, read_csv, write_csv
+from .demo import gao2013_data
+from .errors import DataError, IdentifiabilityError, NotSupportedError, PincalError, RobotError
+from .evaluation import ErrorStats, evaluate
+from .identifiability import Identifiability
+from .kinematics import Chain, forward, joint_jacobian, tip_jacobian
+from .mdh import MdhModel, MdhTable, mdh_table
+from .measurements import Measurement, Problem, all_pairs, gao_pairs
+from .models import MODELS, Model, OffsetsModel, PlacementsModel, PoeModel, make_model
+from .report import report_dict, report_json, summary
+from .robots import BUNDLED, Robot, load_robot
+from .simulate import TrueRobot, random_truth, simulate
+from .solver import Calibration, calibrate
+from .twists import Twists, chain_twists, gao_k, left_jacobian, nominal_twists, poe_forward
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "BUNDLED",
+    "MODELS",
+    "Calibration",
+    "Chain",
+    "CrossValidation",
+    "DataError",
+    "Dataset",
+    "ErrorStats",
+    "IdentifiabilityError",
+    "Identifiability",
+    "MdhModel",
+    "MdhTable",
+    "Measurement",
+    "Model",
+    "NotSupportedError",
+    "OffsetsModel",
+    "PincalError",
+    "PlacementsModel",
+    "PoeModel",
+    "Problem",
+    "Robot",
+    "RobotError",
+    "TrueRobot",
+    "Twists",
+    "all_pairs",
+    "calibrate",
+    "chain_twists",
+    "cross_validate",
+    "evaluate",
+    "forward",
+    "gao2013_data",
+    "gao_k",
+    "gao_pairs",
+    "joint_jacobian",
+    "left_jacobian",
+    "load_robot",
+    "make_model",
+    "mdh_table",
+    "nominal_twists",
+    "poe_forward",
+    "random_truth",
+    "read_csv",
+    "report_dict",
+    "report_json",
+    "simulate",
+    "summary",
+    "tip_jacobian",
+    "write_csv",
+]

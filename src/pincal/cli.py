@@ -1,0 +1,147 @@
+"""The ``pincal`` command line.
+
+Exit codes: 0 success; 2 unusable input, with one ``pincal: error: ...`` line on stderr; 1 a bug.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import NoReturn
+
+import numpy as np
+import pinocchio as pin
+
+from .data import UNITS, Dataset, atomic_write, read_csv
+from .errors import DataError, NotSupportedError, PincalError
+from .measurements import MEASURES
+from .models import MODELS
+from .robots import BUNDLED, Robot, load_robot
+from .solver import LOSSES, calibrate
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse whose usage errors are one ``pincal: error:`` line and exit code 2."""
+
+    def error(self, message: str) -> NoReturn:
+        raise PincalError(f"{message} (see 'pincal {self.prog.split()[-1]} --help')")
+
+
+def _vector3(text: str) -> np.ndarray:
+    try:
+        values = np.array([float(v) for v in text.split(",")])
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected X,Y,Z numbers, got {text!r}") from None
+    if values.shape != (3,) or not np.all(np.isfinite(values)):
+        raise argparse.ArgumentTypeError(f"expected three finite numbers X,Y,Z, got {text!r}")
+    return values
+
+
+def _build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="pincal", description="Kinematic calibration of robot arms on Pinocchio.")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    cal = sub.add_parser("calibrate", help="identify a kinematic model from measurements")
+    cal.add_argument("robot", help=f"a .urdf path or a bundled robot ({', '.join(BUNDLED)})")
+    cal.add_argument("data", type=Path, help="measurement CSV (see contracts.md)")
+    cal.add_argument("--tip", help="the measured frame (default: the robot's documented tip)")
+    cal.add_argument("--model", choices=MODELS, default="placements")
+    cal.add_argument("--measure", choices=MEASURES, help="default: pose if the CSV has qw,qx,qy,qz, else position")
+    cal.add_argument("--test", type=Path, help="held-out poses (CSV) for the error after calibration")
+    cal.add_argument("--holdout", type=float, help="fraction of the poses to hold out instead of --test")
+    cal.add_argument("--seed", type=int, default=0, help="seed of the --holdout split")
+    cal.add_argument("--report", type=Path, help="write the JSON report here")
+    cal.add_argument("-o", "--output", type=Path, help="corrected URDF (not available yet)")
+    cal.add_argument("--degrees", action="store_true", help="revolute joint values are in degrees")
+    cal.add_argument("--units", choices=sorted(UNITS), default="m", help="unit of x,y,z and prismatic joints")
+    cal.add_argument("--instrument-frame", choices=["unknown", "base"], default="unknown",
+                     help="'base': the data is already in the robot's base frame")
+    cal.add_argument("--tool-point", type=_vector3, help="the measured point on the tip frame, X,Y,Z (data units)")
+    cal.add_argument("--pairs", choices=["all", "gao"], default="all", help="pose pairs for --measure distance")
+    cal.add_argument("--loss", choices=LOSSES, default="linear", help="robust loss for outliers")
+    cal.add_argument("--rotation-weight", type=float, default=0.1,
+                     help="weight of orientation residuals for pose data [m/rad] (default 0.1: 1 mrad ~ 0.1 mm)")
+
+    demo = sub.add_parser("demo", help="calibrate bundled data and print before/after tables")
+    demo.add_argument("--seed", type=int, default=0)
+
+    tw = sub.add_parser("twists", help="print the chain's nominal joint twists, checked against Pinocchio")
+    tw.add_argument("robot")
+    tw.add_argument("--tip")
+    return parser
+
+
+def _load_data(path: Path, robot: Robot, args: argparse.Namespace) -> Dataset:
+    return read_csv(path, robot.joint_names, degrees=args.degrees, units=args.units, prismatic=robot.prismatic)
+
+
+def _calibrate(args: argparse.Namespace) -> int:
+    from .report import report_json, summary
+
+    if args.output is not None:
+        raise NotSupportedError(
+            "writing a corrected URDF (-o) is not available in this version; "
+            "use --report FILE.json for the identified parameters"
+        )
+    if args.test is not None and args.holdout is not None:
+        raise DataError("give either --test or --holdout, not both")
+    robot = load_robot(args.robot, tip=args.tip)
+    data = _load_data(args.data, robot, args)
+    test = _load_data(args.test, robot, args) if args.test is not None else None
+    if args.holdout is not None:
+        data, test = data.split(args.holdout, args.seed)
+    scale = UNITS[args.units]
+    cal = calibrate(
+        robot, data, args.model, args.measure, test=test,
+        instrument_T_base=pin.SE3.Identity() if args.instrument_frame == "base" else None,
+        tool=None if args.tool_point is None else args.tool_point * scale,
+        rotation_weight=args.rotation_weight, pairs=args.pairs, loss=args.loss,
+    )
+    print(summary(cal))
+    if args.report is not None:
+        atomic_write(args.report, report_json(cal))
+        print(f"report written to {args.report}")
+    return 0
+
+
+def _twists(args: argparse.Namespace) -> int:
+    from .twists import nominal_twists, poe_forward
+
+    robot = load_robot(args.robot, tip=args.tip)
+    tw = nominal_twists(robot)
+    print(f"{robot.name}: {robot.n_joints} joints from the base to {robot.tip}; twists (ω, v [m]) at q = 0")
+    for name, xi in zip(robot.joint_names, tw.twists):
+        print(f"  {name:24s} ω = {np.array2string(xi[3:], precision=4, suppress_small=True):26s} "
+              f"v = {np.array2string(xi[:3], precision=4, suppress_small=True)}")
+    print(f"  home: p = {np.array2string(tw.home.translation, precision=5, suppress_small=True)} m")
+    rng = np.random.default_rng(0)
+    worst = 0.0
+    for q in robot.random_configurations(100, rng):
+        err = pin.log6(robot.frame_placement(q).actInv(poe_forward(tw.twists, tw.home, q)))
+        worst = max(worst, float(np.abs(err.vector).max()))
+    print(f"  product of exponentials vs Pinocchio at 100 random configurations: max error {worst:.2e}")
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``pincal`` command."""
+    try:
+        args = _build_parser().parse_args(argv)
+        if args.command == "calibrate":
+            return _calibrate(args)
+        if args.command == "twists":
+            return _twists(args)
+        from .demo import run
+
+        print(run(seed=args.seed))
+        return 0
+    except PincalError as exc:
+        message = " ".join(str(exc).split())
+        print(f"pincal: error: {message}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

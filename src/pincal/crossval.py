@@ -1,0 +1,99 @@
+"""K-fold cross-validation over poses: the error a calibration makes on poses it did not fit.
+
+For position and pose data, each fold's held-out poses are predicted with the registration and
+tool fitted on the other folds. For distance data, the held-out errors are those of every pair
+with at least one held-out pose (the other pose may have been fitted): this is how a distance
+calibration is judged on new poses without an instrument registration.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from .data import Dataset
+from .evaluation import ErrorStats, pose_errors
+from .measurements import Problem, all_pairs
+from .robots import Robot
+from .solver import Calibration, calibrate
+
+
+@dataclass(frozen=True)
+class CrossValidation:
+    """Pooled held-out errors of a K-fold cross-validation.
+
+    Attributes:
+        folds: number of folds.
+        urdf: the URDF as it is (nominal tool, registration fitted on the other folds).
+        before: nominal kinematics with registration and tool fitted on the other folds.
+        after: the calibrated model.
+        calibrations: the calibration of each fold.
+    """
+
+    folds: int
+    urdf: ErrorStats
+    before: ErrorStats
+    after: ErrorStats
+    calibrations: tuple[Calibration, ...]
+
+    @property
+    def gain(self) -> float:
+        """Mean held-out error before / after calibration."""
+        return self.before.mean_mm / self.after.mean_mm
+
+    @property
+    def gain_vs_urdf(self) -> float:
+        """Mean held-out error of the URDF as it is / after calibration."""
+        return self.urdf.mean_mm / self.after.mean_mm
+
+
+def fold_indices(n: int, folds: int, seed: int = 0) -> list[np.ndarray]:
+    """Random partition of ``n`` poses into ``folds`` held-out index sets (sorted)."""
+    order = np.random.default_rng(seed).permutation(n)
+    return [np.sort(f) for f in np.array_split(order, folds)]
+
+
+def _held_out_errors(cal: Calibration, data: Dataset, held: np.ndarray) -> list[np.ndarray]:
+    """Held-out errors [m] of the URDF, before and after, for one fold."""
+    out = []
+    for meas, theta in (
+        (cal.urdf_measurement, cal.urdf_theta),
+        (cal.measurement, cal.nominal_theta),
+        (cal.measurement, cal.theta),
+    ):
+        if cal.measurement.kind == "distance":
+            pairs = all_pairs(len(data))
+            pairs = pairs[np.isin(pairs, held).any(axis=1)]
+            out.append(np.abs(Problem(cal.model, replace(meas, pairs=pairs), data).residuals(theta)))
+        else:
+            out.append(pose_errors(cal.model, meas, theta, data.subset(held))[0])
+    return out
+
+
+def cross_validate(
+    robot: Robot, data: Dataset, model: str = "placements", measure: str | None = None,
+    folds: int = 7, seed: int = 0, **options: Any,
+) -> CrossValidation:
+    """Calibrate on K-1 folds, judge on the held-out fold, pool the held-out errors.
+
+    Args:
+        robot: the robot.
+        data: all poses.
+        model: the parameterization.
+        measure: the measurement (default as :func:`pincal.calibrate`).
+        folds: number of folds (``len(data)`` for leave-one-out).
+        seed: seed of the partition.
+        **options: passed to :func:`pincal.calibrate`.
+    """
+    pooled: list[list[np.ndarray]] = [[], [], []]
+    cals = []
+    for held in fold_indices(len(data), folds, seed):
+        fit = np.setdiff1d(np.arange(len(data)), held)
+        cal = calibrate(robot, data.subset(fit), model, measure, **options)
+        cals.append(cal)
+        for store, errs in zip(pooled, _held_out_errors(cal, data, held)):
+            store.append(errs)
+    urdf, before, after = (ErrorStats.of(np.concatenate(p)) for p in pooled)
+    return CrossValidation(folds, urdf, before, after, tuple(cals))

@@ -1,0 +1,184 @@
+"""Measurement data: the :class:`Dataset` container and the CSV format of ``contracts.md``.
+
+One row per pose: a column per actuated joint of the chain, named as the URDF joint (radians or
+metres; degrees with ``degrees=True``), ``x,y,z`` the measured point in the instrument frame
+(metres; millimetres with ``units="mm"``) and optionally ``qw,qx,qy,qz`` the measured
+orientation of a target frame on the tip. Other columns are ignored. Lines starting with ``#``
+are comments.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+import tempfile
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from .errors import DataError
+
+UNITS = {"m": 1.0, "mm": 1e-3}
+_QUAT = ("qw", "qx", "qy", "qz")
+
+
+@dataclass(frozen=True)
+class Dataset:
+    """Joint values and measurements of a set of poses. Internally metres and radians.
+
+    Attributes:
+        joint_names: the chain joints the columns of ``q`` belong to.
+        q: (N, n) joint values [rad or m].
+        points: (N, 3) measured point in the instrument frame [m].
+        quaternions: (N, 4) measured orientation (w, x, y, z) in the instrument frame, or None.
+        rows: (N,) the row number of each pose in its source (1 = first data row).
+    """
+
+    joint_names: tuple[str, ...]
+    q: np.ndarray
+    points: np.ndarray
+    quaternions: np.ndarray | None = None
+    rows: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.rows is None:
+            object.__setattr__(self, "rows", np.arange(1, len(self.q) + 1))
+
+    def __len__(self) -> int:
+        return len(self.q)
+
+    @property
+    def has_orientation(self) -> bool:
+        """Whether the data holds measured orientations (full-pose data)."""
+        return self.quaternions is not None
+
+    def rotations(self) -> np.ndarray:
+        """Measured orientations as rotation matrices (N, 3, 3)."""
+        if self.quaternions is None:
+            raise DataError("the data has no orientation columns qw,qx,qy,qz")
+        w, x, y, z = (self.quaternions / np.linalg.norm(self.quaternions, axis=1, keepdims=True)).T
+        return np.stack(
+            [
+                np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+                np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+                np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+            ],
+            axis=1,
+        )
+
+    def subset(self, index: Sequence[int] | np.ndarray) -> Dataset:
+        """The poses at ``index`` (row numbers are kept)."""
+        idx = np.asarray(index)
+        quats = None if self.quaternions is None else self.quaternions[idx]
+        assert self.rows is not None
+        return replace(self, q=self.q[idx], points=self.points[idx], quaternions=quats, rows=self.rows[idx])
+
+    def split(self, fraction: float, seed: int = 0) -> tuple[Dataset, Dataset]:
+        """Random (fit, held-out) split, ``fraction`` of the poses held out."""
+        if not 0.0 < fraction < 1.0:
+            raise DataError(f"--holdout must be a fraction between 0 and 1, got {fraction}")
+        order = np.random.default_rng(seed).permutation(len(self))
+        n_out = max(1, round(fraction * len(self)))
+        return self.subset(np.sort(order[n_out:])), self.subset(np.sort(order[:n_out]))
+
+
+def read_csv(
+    path: str | Path,
+    joint_names: Sequence[str],
+    degrees: bool = False,
+    units: str = "m",
+    prismatic: Sequence[bool] | None = None,
+) -> Dataset:
+    """Read a measurement CSV (see the module docstring).
+
+    Args:
+        path: the CSV file.
+        joint_names: the chain's actuated joints; each must have a column.
+        degrees: revolute joint values are in degrees.
+        units: unit of ``x,y,z`` and of prismatic joint values (``m`` or ``mm``).
+        prismatic: which joints are prismatic (their values take ``units``, not degrees).
+
+    Raises:
+        DataError: the file is missing or malformed.
+    """
+    path = Path(path)
+    if units not in UNITS:
+        raise DataError(f"unknown unit {units!r}: use m or mm")
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except FileNotFoundError:
+        raise DataError(f"data file not found: {path}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise DataError(f"cannot read data file {path}: {exc}") from None
+    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
+    if not lines:
+        raise DataError(f"{path} is empty: it needs a header line and one row per pose")
+    reader = csv.reader(io.StringIO("\n".join(lines)))
+    header = [h.strip() for h in next(reader)]
+    dupes = sorted({h for h in header if header.count(h) > 1})
+    if dupes:
+        raise DataError(f"{path}: duplicated column(s) {', '.join(dupes)}")
+    missing = [j for j in (*joint_names, "x", "y", "z") if j not in header]
+    if missing:
+        raise DataError(
+            f"{path}: missing column(s) {', '.join(missing)}; the header must name every chain "
+            f"joint ({', '.join(joint_names)}) and x,y,z"
+        )
+    rows = list(reader)
+    if not rows:
+        raise DataError(f"{path} has a header but no data rows")
+    has_quat = all(c in header for c in _QUAT)
+    wanted = [*joint_names, "x", "y", "z", *(_QUAT if has_quat else ())]
+    cols = [header.index(c) for c in wanted]
+    values = np.empty((len(rows), len(wanted)))
+    for r, row in enumerate(rows):
+        if len(row) != len(header):
+            raise DataError(f"{path}: data row {r + 1} has {len(row)} fields, the header {len(header)}")
+        for k, c in enumerate(cols):
+            try:
+                values[r, k] = float(row[c])
+            except ValueError:
+                raise DataError(f"{path}: data row {r + 1}, column {wanted[k]}: {row[c]!r} is not a number") from None
+            if not math.isfinite(values[r, k]):
+                raise DataError(f"{path}: data row {r + 1}, column {wanted[k]}: {row[c]} is not a finite number")
+    n = len(joint_names)
+    q = values[:, :n].copy()
+    prism = np.asarray(prismatic if prismatic is not None else [False] * n, dtype=bool)
+    if degrees:
+        q[:, ~prism] = np.deg2rad(q[:, ~prism])
+    q[:, prism] *= UNITS[units]
+    points = values[:, n : n + 3] * UNITS[units]
+    quats = values[:, n + 3 : n + 7] if has_quat else None
+    return Dataset(tuple(joint_names), q, points, quats)
+
+
+def write_csv(path: str | Path, data: Dataset, units: str = "m") -> None:
+    """Write a dataset in the CSV format :func:`read_csv` reads (radians, ``units`` for x,y,z)."""
+    scale = 1.0 / UNITS[units]
+    header = [*data.joint_names, "x", "y", "z", *(_QUAT if data.has_orientation else ())]
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(header)
+    for i in range(len(data)):
+        row = [*data.q[i], *(data.points[i] * scale)]
+        if data.quaternions is not None:
+            row += list(data.quaternions[i])
+        writer.writerow([repr(float(v)) for v in row])
+    atomic_write(path, buffer.getvalue())
+
+
+def atomic_write(path: str | Path, text: str) -> None:
+    """Write ``text`` to ``path`` atomically: a temporary file in the same folder, then a rename."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent or ".", prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise

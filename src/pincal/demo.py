@@ -1,0 +1,73 @@
+"""``pincal demo``: a full calibration on bundled data, printed as before/after tables.
+
+1. A simulated UR5 laser-tracker experiment (seeded): 0.5 mm / 0.5 mrad joint-origin errors,
+   1 mrad joint offsets, unknown tracker pose and reflector position, 0.03 mm noise; 60 fitted
+   and 100 held-out poses; every model.
+2. The real data of Gao et al. (2013), 28 poses of a 5-DOF arm measured by a laser tracker:
+   distance calibration (POE), judged by 7-fold cross-validation over poses.
+"""
+
+from __future__ import annotations
+
+import csv
+from importlib import resources
+
+import numpy as np
+
+from .crossval import cross_validate
+from .data import Dataset
+from .models import MODELS
+from .robots import load_robot
+from .simulate import simulate
+from .solver import calibrate
+
+
+def gao2013_data() -> tuple[Dataset, np.ndarray]:
+    """Table 2 of Gao et al. (2013), shipped with pincal, for the bundled ``mrres5``.
+
+    Returns:
+        The 28 poses (joint angles [rad], tracker coordinates [m]) and the paper's nominal
+        coordinates of the reflector in the base frame (28, 3) [m].
+    """
+    text = resources.files("pincal.tables").joinpath("gao2013_table2.csv").read_text(encoding="utf-8")
+    rows = [r for r in csv.reader(text.splitlines()) if r and not r[0].startswith("#")][1:]
+    values = np.array(rows, dtype=float)
+    joints = tuple(f"joint{k}" for k in range(1, 6))
+    data = Dataset(joints, np.deg2rad(values[:, 1:6]), values[:, 6:9] * 1e-3)
+    return data, values[:, 9:12] * 1e-3
+
+
+def run(seed: int = 0) -> str:
+    """Run the demo and return its printout."""
+    out = ["pincal demo", "=" * 78, ""]
+    ur5 = load_robot("ur5")
+    _, fit, test = simulate(ur5, n_fit=60, n_test=100, seed=seed)
+    out.append(
+        "1. Simulated UR5 tracker experiment (seed %d): 60 fitted, 100 held-out poses, "
+        "0.03 mm noise (noise floor 0.052 mm RMS)" % seed
+    )
+    out.append(f"   {'model':11s} {'identifiable':>13s} {'held-out RMS [mm] before':>26s} {'after':>8s} {'max after':>10s}")
+    for kind in MODELS:
+        cal = calibrate(ur5, fit, kind, test=test)
+        assert cal.test_before is not None and cal.test_after is not None
+        out.append(
+            f"   {kind:11s} {cal.identifiability.n_identifiable:>6d} of {len(cal.names):<4d} "
+            f"{cal.test_before.rms_mm:>26.4f} {cal.test_after.rms_mm:>8.4f} {cal.test_after.max_mm:>10.4f}"
+        )
+    out.append("")
+    data, _ = gao2013_data()
+    cv = cross_validate(load_robot("mrres5"), data, "poe", "distance", folds=7, seed=seed)
+    out.append("2. Gao et al. 2013, real laser-tracker data of a 5-DOF arm (28 poses), distance model,")
+    out.append("   POE twists, 7-fold cross-validation: |distance error| on pairs with a held-out pose [mm]")
+    out.append(f"   {'':38s} {'mean':>8s} {'max':>8s}")
+    for label, stats in (
+        ("URDF as is (paper's nominal p_E0)", cv.urdf),
+        ("nominal, p_E0 fitted", cv.before),
+        ("calibrated", cv.after),
+    ):
+        out.append(f"   {label:38s} {stats.mean_mm:8.3f} {stats.max_mm:8.3f}")
+    out.append(
+        f"   gain {cv.gain_vs_urdf:.2f}x on the URDF as is (the paper reports 3.5x on its own test pairs), "
+        f"{cv.gain:.2f}x on the nominal model with p_E0 fitted"
+    )
+    return "\n".join(out)

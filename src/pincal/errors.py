@@ -1,0 +1,27 @@
+"""Exceptions: one root, :class:`PincalError`, whose subclasses say what to fix in the input.
+
+The command line turns any :class:`PincalError` into one ``pincal: error: ...`` line and exit
+code 2. Anything else escaping is a bug (exit code 1, traceback).
+"""
+
+from __future__ import annotations
+
+
+class PincalError(Exception):
+    """Root of every error caused by unusable input. The message tells the user how to fix it."""
+
+
+class RobotError(PincalError):
+    """The robot cannot be loaded: unknown name, missing or malformed URDF, unknown frame."""
+
+
+class DataError(PincalError):
+    """The measurement data is unusable: missing file or columns, non-numeric values, units."""
+
+
+class IdentifiabilityError(PincalError):
+    """The data cannot identify what was asked (too few poses, rank deficiency)."""
+
+
+class NotSupportedError(PincalError):
+    """A requested feature exists in the interface but not (yet) for this input."""

@@ -1,0 +1,82 @@
+"""Error statistics of a model on a set of poses: what ``train`` and ``test`` report.
+
+Position and pose data: the norm of each pose's 3-D position error (and, for pose data, the
+angle of its orientation error). Distance data: ``|d_measured - d_model|`` over pairs of poses.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from .data import Dataset
+from .measurements import Measurement, Problem
+from .models import Model
+
+
+@dataclass(frozen=True)
+class ErrorStats:
+    """Statistics of per-pose (or per-pair) errors [mm], and orientation errors [mrad] if any."""
+
+    rms_mm: float
+    mean_mm: float
+    max_mm: float
+    std_mm: float
+    n: int
+    rot_rms_mrad: float | None = None
+    rot_mean_mrad: float | None = None
+    rot_max_mrad: float | None = None
+    rot_std_mrad: float | None = None
+
+    @classmethod
+    def of(cls, errors_m: np.ndarray, rot_errors_rad: np.ndarray | None = None) -> ErrorStats:
+        """Statistics of position errors [m] and optional orientation errors [rad]."""
+        e = np.asarray(errors_m, dtype=float) * 1e3
+        rot: dict[str, float] = {}
+        if rot_errors_rad is not None:
+            r = np.asarray(rot_errors_rad, dtype=float) * 1e3
+            rot = {
+                "rot_rms_mrad": float(np.sqrt(np.mean(r**2))),
+                "rot_mean_mrad": float(np.mean(r)),
+                "rot_max_mrad": float(np.max(r)),
+                "rot_std_mrad": float(np.std(r)),
+            }
+        return cls(
+            rms_mm=float(np.sqrt(np.mean(e**2))),
+            mean_mm=float(np.mean(e)),
+            max_mm=float(np.max(e)),
+            std_mm=float(np.std(e)),
+            n=int(e.size),
+            **rot,
+        )
+
+    def to_dict(self) -> dict[str, float | int]:
+        """JSON-ready dictionary (orientation keys only when present)."""
+        return {k: v for k, v in asdict(self).items() if v is not None}
+
+
+def pose_errors(
+    model: Model, measurement: Measurement, theta: np.ndarray, data: Dataset
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """Per-pose position error norms [m] and orientation error angles [rad] (pose data)."""
+    problem = Problem(model, measurement, data)
+    pos, rot = problem.predict(theta)
+    err = np.linalg.norm(pos - data.points, axis=1)
+    if measurement.kind != "pose":
+        return err, None
+    rel = np.transpose(data.rotations(), (0, 2, 1)) @ rot
+    cos = np.clip((np.trace(rel, axis1=1, axis2=2) - 1.0) / 2.0, -1.0, 1.0)
+    return err, np.arccos(cos)
+
+
+def distance_errors(model: Model, measurement: Measurement, theta: np.ndarray, data: Dataset) -> np.ndarray:
+    """``|d_model - d_measured|`` [m] over the measurement's pairs (default: all pairs of ``data``)."""
+    return np.abs(Problem(model, measurement, data).residuals(theta))
+
+
+def evaluate(model: Model, measurement: Measurement, theta: np.ndarray, data: Dataset) -> ErrorStats:
+    """Error statistics of the unknowns ``theta`` on ``data``, as the report states them."""
+    if measurement.kind == "distance":
+        return ErrorStats.of(distance_errors(model, measurement, theta, data))
+    return ErrorStats.of(*pose_errors(model, measurement, theta, data))

@@ -1,0 +1,172 @@
+"""Chain kinematics vectorised over poses, and the one Jacobian mechanism every model shares.
+
+Every parameterization writes the robot as a serial chain
+
+    base_T_tip(q) = C_0 · exp(S_1 q_1) · C_1 · exp(S_2 q_2) · ... · exp(S_n q_n) · C_n
+
+with constant placements ``C_k`` (functions of the model's parameters) and local unit joint
+twists ``S_j``. The chain has ``2n + 1`` *positions*: position ``2k`` is the frame after ``C_k``,
+position ``2j - 1`` the frame after joint ``j``'s motion. A parameter acts on the chain as a
+right-perturbation ``exp(ζ ε)`` at one or more positions, with a local twist ``ζ``; its effect on
+the tip is then ``Ad(base_T_position) ζ``. A joint's own column is the same thing with ``ζ = S_j``
+at position ``2j - 1``, which is what :func:`joint_jacobian` uses and what the tests compare to
+Pinocchio's frame Jacobian.
+
+Arrays are batched over poses: rotations ``(N, 3, 3)``, translations ``(N, 3)`` [m]. Twists and
+Jacobian rows are in Pinocchio's order (v, ω). Tip Jacobians are LOCAL_WORLD_ALIGNED: the velocity
+[m/unit] of the tip origin and the angular velocity [rad/unit], both in base axes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from .robots import Robot
+
+
+@dataclass(frozen=True)
+class Chain:
+    """A chain's constant placements and joint twists.
+
+    Attributes:
+        placements: ``C_0 ... C_n`` as SE3.
+        axes: joint twists ``S_j`` (n, 6) in the frame after ``C_{j-1}``, order (v, ω).
+    """
+
+    placements: tuple[pin.SE3, ...]
+    axes: np.ndarray
+
+    @classmethod
+    def nominal(cls, robot: Robot) -> Chain:
+        """The chain of the robot's URDF joint origins and tip placement."""
+        return cls(robot.placements, robot.axes)
+
+
+@dataclass(frozen=True)
+class Frames:
+    """World frames of every chain position, for a batch of poses.
+
+    Attributes:
+        rotations: (2n + 1, N, 3, 3) ``base_R_position``.
+        translations: (2n + 1, N, 3) ``base_p_position`` [m].
+    """
+
+    rotations: np.ndarray
+    translations: np.ndarray
+
+    @property
+    def tip_rotation(self) -> np.ndarray:
+        """``base_R_tip`` (N, 3, 3)."""
+        return self.rotations[-1]
+
+    @property
+    def tip_translation(self) -> np.ndarray:
+        """``base_p_tip`` (N, 3) [m]."""
+        return self.translations[-1]
+
+
+def skew(v: np.ndarray) -> np.ndarray:
+    """Skew-symmetric matrices of vectors (..., 3) -> (..., 3, 3)."""
+    out = np.zeros((*v.shape[:-1], 3, 3))
+    out[..., 0, 1], out[..., 0, 2] = -v[..., 2], v[..., 1]
+    out[..., 1, 0], out[..., 1, 2] = v[..., 2], -v[..., 0]
+    out[..., 2, 0], out[..., 2, 1] = -v[..., 1], v[..., 0]
+    return out
+
+
+def axis_rotations(axis: np.ndarray, angles: np.ndarray) -> np.ndarray:
+    """Rotations about a unit axis (3,) by angles (N,) [rad], Rodrigues' formula -> (N, 3, 3)."""
+    k = skew(np.asarray(axis, dtype=float))
+    s, c = np.sin(angles)[:, None, None], np.cos(angles)[:, None, None]
+    return np.eye(3) + s * k + (1.0 - c) * (k @ k)
+
+
+def forward(chain: Chain, q: np.ndarray) -> Frames:
+    """World frames of all chain positions for joint values ``q`` (N, n) [rad or m]."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    n_poses, n = q.shape
+    rotations = np.empty((2 * n + 1, n_poses, 3, 3))
+    translations = np.empty((2 * n + 1, n_poses, 3))
+    rot = np.broadcast_to(chain.placements[0].rotation, (n_poses, 3, 3))
+    pos = np.broadcast_to(chain.placements[0].translation, (n_poses, 3))
+    rotations[0], translations[0] = rot, pos
+    for j in range(n):
+        v, w = chain.axes[j, :3], chain.axes[j, 3:]
+        if np.any(w):  # revolute joint through the frame origin
+            rot = rot @ axis_rotations(w, q[:, j])
+        else:  # prismatic
+            pos = pos + (rot @ v) * q[:, j, None]
+        rotations[2 * j + 1], translations[2 * j + 1] = rot, pos
+        c = chain.placements[j + 1]
+        pos = pos + rot @ c.translation
+        rot = rot @ c.rotation
+        rotations[2 * j + 2], translations[2 * j + 2] = rot, pos
+    return Frames(rotations, translations)
+
+
+def tip_jacobian(frames: Frames, twists: np.ndarray) -> np.ndarray:
+    """Tip Jacobian of right-perturbations given at chain positions.
+
+    Args:
+        frames: output of :func:`forward`.
+        twists: (2n + 1, 6, p) local twist of each of ``p`` parameters at each position
+            (zero where a parameter does not act).
+
+    Returns:
+        (N, 6, p) LOCAL_WORLD_ALIGNED Jacobian of the tip: rows (v [m/unit], ω [rad/unit]).
+    """
+    n_poses = frames.tip_translation.shape[0]
+    jac = np.zeros((n_poses, 6, twists.shape[2]))
+    tip = frames.tip_translation
+    for k in range(twists.shape[0]):
+        cols = np.flatnonzero(np.any(twists[k] != 0.0, axis=0))
+        if cols.size == 0:
+            continue
+        rot = frames.rotations[k]
+        z = twists[k][:, cols]
+        w = rot @ z[3:]  # (N, 3, m)
+        lever = (tip - frames.translations[k])[:, :, None]  # (N, 3, 1)
+        v = rot @ z[:3] + np.cross(w, lever, axis=1)
+        jac[:, :3, cols] += v
+        jac[:, 3:, cols] += w
+    return jac
+
+
+def joint_jacobian(chain: Chain, frames: Frames) -> np.ndarray:
+    """Tip Jacobian with respect to the joint values (N, 6, n), LOCAL_WORLD_ALIGNED.
+
+    Joint ``j`` is a right-perturbation by ``S_j`` at position ``2j - 1``: the same mechanism as
+    every parameter, so comparing this with :meth:`Robot.frame_jacobian` checks it.
+    """
+    n = chain.axes.shape[0]
+    twists = np.zeros((2 * n + 1, 6, n))
+    for j in range(n):
+        twists[2 * j + 1, :, j] = chain.axes[j]
+    return tip_jacobian(frames, twists)
+
+
+def right_twists(factors: list[pin.SE3], local: list[tuple[int, int, np.ndarray]], n_params: int) -> np.ndarray:
+    """Right-perturbation twists of a product of factors ``C = F_0 · F_1 · ... · F_m``.
+
+    Args:
+        factors: the factors ``F_i``.
+        local: entries ``(parameter, i, ζ)``: the parameter perturbs ``F_i`` on its right by the
+            local twist ``ζ`` (6,).
+        n_params: number of parameter columns.
+
+    Returns:
+        (6, n_params) twists of the same perturbations on the right of the whole product ``C``:
+        ``Ad(suffix⁻¹) ζ``, with ``suffix = F_{i+1} · ... · F_m``.
+    """
+    out = np.zeros((6, n_params))
+    suffixes = [pin.SE3.Identity()] * len(factors)
+    acc = pin.SE3.Identity()
+    for i in range(len(factors) - 1, -1, -1):
+        suffixes[i] = acc
+        acc = factors[i] * acc
+    for param, i, zeta in local:
+        out[:, param] += suffixes[i].actInv(pin.Motion(zeta)).vector
+    return out

@@ -1,0 +1,259 @@
+"""Robots: resolve a ROBOT argument, load its URDF into Pinocchio and take the base-to-tip chain.
+
+A :class:`Robot` holds the reduced Pinocchio model (every joint off the base-to-tip path, and any
+joint not asked for, is locked), the names and kinds of the chain's joints, and the nominal
+chain written as ``base_T_tip(q) = C_0 · exp(S_1 q_1) · C_1 · ... · exp(S_n q_n) · C_n``:
+constant placements ``C_k`` (the URDF's joint origins, then the tip frame's placement) and the
+joints' local unit twists ``S_j``. Lengths are metres, angles radians.
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+import math
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from .errors import RobotError
+
+#: Bundled robots: name -> (source, path inside the source, default tip frame).
+BUNDLED: dict[str, tuple[str, str, str]] = {
+    "ur3": ("example-robot-data", "ur_description/urdf/ur3_robot.urdf", "tool0"),
+    "ur5": ("example-robot-data", "ur_description/urdf/ur5_robot.urdf", "tool0"),
+    "ur10": ("example-robot-data", "ur_description/urdf/ur10_robot.urdf", "tool0"),
+    "panda": ("example-robot-data", "panda_description/urdf/panda.urdf", "panda_hand_tcp"),
+    "z1": ("example-robot-data", "z1_description/urdf/z1.urdf", "link06"),
+    "mrres5": ("pincal", "mrres5.urdf", "target"),
+    "zu3": ("pincal", "jaka_zu3.urdf", "tool0"),
+}
+
+_FRAME_PREFERENCE = (pin.FrameType.BODY, pin.FrameType.FIXED_JOINT, pin.FrameType.OP_FRAME)
+
+
+def bundled_urdf(name: str) -> Path:
+    """Path of a bundled robot's URDF.
+
+    Args:
+        name: one of :data:`BUNDLED`.
+    """
+    if name not in BUNDLED:
+        raise RobotError(f"unknown robot {name!r}: give a .urdf path or one of {', '.join(BUNDLED)}")
+    source, rel, _ = BUNDLED[name]
+    if source == "pincal":
+        here = Path(__file__).resolve().parent
+        for folder in (here / "urdf", here.parents[1] / "urdf"):  # installed, then source tree
+            if (folder / rel).is_file():
+                return folder / rel
+        raise RobotError(f"bundled URDF {rel} is missing from this installation of pincal")
+    dist = importlib.metadata.distribution("example-robot-data")
+    path = Path(str(dist.locate_file("cmeel.prefix/share/example-robot-data/robots"))) / rel
+    if not path.is_file():
+        raise RobotError(f"example-robot-data has no {rel}: reinstall example-robot-data")
+    return path
+
+
+@dataclass(frozen=True, eq=False)
+class Robot:
+    """A serial chain from the URDF's root to a tip frame, on a reduced Pinocchio model.
+
+    Attributes:
+        name: the ROBOT argument as given (bundled name or path).
+        urdf_path: the URDF file.
+        model: reduced Pinocchio model whose joints are exactly the chain's joints, in order.
+        tip: name of the tip frame (the frame whose point or pose is measured).
+        tip_frame_id: index of the tip frame in ``model``.
+        joint_names: names of the chain's actuated joints, base to tip.
+        prismatic: for each chain joint, True when it is prismatic (its value is in metres).
+        lower: lower joint limits [rad or m] (-inf for continuous joints).
+        upper: upper joint limits [rad or m] (+inf for continuous joints).
+    """
+
+    name: str
+    urdf_path: Path
+    model: pin.Model
+    tip: str
+    tip_frame_id: int
+    joint_names: tuple[str, ...]
+    prismatic: tuple[bool, ...]
+    lower: np.ndarray
+    upper: np.ndarray
+
+    @property
+    def n_joints(self) -> int:
+        """Number of actuated joints in the chain."""
+        return len(self.joint_names)
+
+    @cached_property
+    def axes(self) -> np.ndarray:
+        """Local unit twists ``S_j`` of the chain's joints, (n, 6) in Pinocchio order (v, ω)."""
+        data = self.model.createData()
+        pin.forwardKinematics(self.model, data, pin.neutral(self.model))
+        return np.array([np.asarray(data.joints[j].S).reshape(6) for j in self._joint_ids])
+
+    @cached_property
+    def placements(self) -> tuple[pin.SE3, ...]:
+        """Nominal constant placements ``C_0 ... C_n`` of the chain (joint origins, then tip)."""
+        joints = [self.model.jointPlacements[j].copy() for j in self._joint_ids]
+        return (*joints, self.model.frames[self.tip_frame_id].placement.copy())
+
+    @property
+    def _joint_ids(self) -> range:
+        return range(1, self.model.njoints)
+
+    def configuration(self, q: np.ndarray) -> np.ndarray:
+        """Pinocchio configuration vector of the reduced model for chain joint values ``q``.
+
+        Args:
+            q: joint values (n,) [rad for revolute, m for prismatic].
+        """
+        q = np.asarray(q, dtype=float).reshape(self.n_joints)
+        out = np.empty(self.model.nq)
+        for k, j in enumerate(self._joint_ids):
+            joint = self.model.joints[j]
+            if joint.nq == 2:  # continuous joint: (cos, sin)
+                out[joint.idx_q : joint.idx_q + 2] = (math.cos(q[k]), math.sin(q[k]))
+            else:
+                out[joint.idx_q] = q[k]
+        return out
+
+    def frame_placement(self, q: np.ndarray) -> pin.SE3:
+        """``base_T_tip`` by Pinocchio's forward kinematics (the reference for every model)."""
+        data = self.model.createData()
+        pin.framesForwardKinematics(self.model, data, self.configuration(q))
+        return data.oMf[self.tip_frame_id].copy()
+
+    def frame_jacobian(self, q: np.ndarray) -> np.ndarray:
+        """Pinocchio's tip-frame Jacobian (6, n), LOCAL_WORLD_ALIGNED: rows (v [m/unit], ω [rad/unit])."""
+        data = self.model.createData()
+        pin.computeJointJacobians(self.model, data, self.configuration(q))
+        pin.updateFramePlacements(self.model, data)
+        return pin.getFrameJacobian(
+            self.model, data, self.tip_frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+        ).copy()
+
+    def random_configurations(self, n: int, rng: np.random.Generator, margin: float = 0.0) -> np.ndarray:
+        """Uniform joint values within the limits (continuous and ±2π joints drawn in [-π, π]).
+
+        Args:
+            n: number of configurations.
+            rng: random generator.
+            margin: fraction of each range left out at both ends.
+        """
+        lo = np.where(np.isfinite(self.lower), self.lower, -math.pi)
+        hi = np.where(np.isfinite(self.upper), self.upper, math.pi)
+        wide = (hi - lo) > 2 * math.pi
+        lo, hi = np.where(wide, -math.pi, lo), np.where(wide, math.pi, hi)
+        span = hi - lo
+        return lo + span * (margin + (1 - 2 * margin) * rng.random((n, self.n_joints)))
+
+
+def _find_frame(model: pin.Model, name: str) -> int:
+    matches = [i for i, f in enumerate(model.frames) if f.name == name]
+    if not matches:
+        links = sorted({f.name for f in model.frames if f.type == pin.FrameType.BODY})
+        raise RobotError(f"no frame named {name!r} in the URDF; links are: {', '.join(links)}")
+    for kind in _FRAME_PREFERENCE:
+        for i in matches:
+            if model.frames[i].type == kind:
+                return i
+    return matches[0]
+
+
+def load_robot(
+    robot: str | Path,
+    tip: str | None = None,
+    joints: Iterable[str] | None = None,
+    locked: Mapping[str, float] | None = None,
+) -> Robot:
+    """Load a robot and reduce it to the chain from its base to ``tip``.
+
+    Args:
+        robot: a ``.urdf`` path or a bundled name (see :data:`BUNDLED`).
+        tip: the measured frame; defaults to the bundled robot's documented tip, or the last link.
+        joints: if given, only these chain joints stay actuated (for example the data's columns);
+            the other chain joints are locked.
+        locked: values for locked joints [rad or m]; unspecified ones are locked at neutral.
+
+    Raises:
+        RobotError: unknown name, unreadable URDF, unknown tip frame or joint.
+    """
+    name = str(robot)
+    if name in BUNDLED:
+        path = bundled_urdf(name)
+        tip = tip or BUNDLED[name][2]
+    else:
+        path = Path(name)
+        if path.suffix.lower() != ".urdf":
+            raise RobotError(f"unknown robot {name!r}: give a .urdf path or one of {', '.join(BUNDLED)}")
+        if not path.is_file():
+            raise RobotError(f"URDF file not found: {path}")
+    try:
+        full = pin.buildModelFromUrdf(str(path))
+    except (RuntimeError, ValueError) as exc:
+        raise RobotError(f"cannot load URDF {path}: {exc}") from None
+    if tip is None:
+        tip = next(f.name for f in reversed(full.frames) if f.type == pin.FrameType.BODY)
+    tip_id = _find_frame(full, tip)
+
+    path_ids: list[int] = []
+    j = full.frames[tip_id].parentJoint
+    while j > 0:
+        path_ids.append(j)
+        j = full.parents[j]
+    path_ids.reverse()
+    wanted = set(joints) if joints is not None else None
+    if wanted is not None:
+        unknown = wanted - set(full.names[1:])
+        if unknown:
+            raise RobotError(f"the URDF has no joint named {', '.join(sorted(unknown))}")
+        off_path = wanted - {full.names[j] for j in path_ids}
+        if off_path:
+            raise RobotError(
+                f"joint(s) {', '.join(sorted(off_path))} are not between the base and {tip!r}"
+            )
+    keep = [j for j in path_ids if wanted is None or full.names[j] in wanted]
+    for j in keep:
+        if full.joints[j].nv != 1:
+            raise RobotError(
+                f"joint {full.names[j]!r} is a {full.joints[j].shortname()}: "
+                "only revolute, continuous and prismatic joints can be calibrated"
+            )
+    q_ref = pin.neutral(full)
+    for jname, value in (locked or {}).items():
+        if not full.existJointName(jname):
+            raise RobotError(f"cannot lock {jname!r}: the URDF has no such joint")
+        jj = full.joints[full.getJointId(jname)]
+        q_ref[jj.idx_q] = value
+    lock = [j for j in range(1, full.njoints) if j not in keep]
+    model = pin.buildReducedModel(full, lock, q_ref) if lock else full
+    tip_id = _find_frame(model, tip)
+    if model.frames[tip_id].parentJoint != model.njoints - 1 and model.njoints > 1:
+        raise RobotError(f"frame {tip!r} is not at the end of the chain")  # pragma: no cover
+
+    names = tuple(model.names[1:])
+    prismatic = tuple(model.joints[j].shortname().startswith("JointModelP") for j in range(1, model.njoints))
+    lower = np.empty(len(names))
+    upper = np.empty(len(names))
+    for k in range(len(names)):
+        joint = model.joints[k + 1]
+        if joint.nq == 2:
+            lower[k], upper[k] = -np.inf, np.inf
+        else:
+            lower[k] = model.lowerPositionLimit[joint.idx_q]
+            upper[k] = model.upperPositionLimit[joint.idx_q]
+    return Robot(
+        name=name,
+        urdf_path=path,
+        model=model,
+        tip=tip,
+        tip_frame_id=tip_id,
+        joint_names=names,
+        prismatic=prismatic,
+        lower=lower,
+        upper=upper,
+    )

@@ -1,0 +1,285 @@
+"""Identification: register the nominal model, find the identifiable set, solve, report errors.
+
+:func:`calibrate` is the whole pipeline. The solver is ``scipy.optimize.least_squares``
+(Levenberg-Marquardt, or trust-region reflective with a robust loss) on the identifiable
+parameters only, scaled so that 1 mm and the rotation that moves the workspace by 1 mm weigh the
+same; standard deviations are ``σ² (JᵀJ)⁻¹`` on that set with ``σ²`` from the fit residual.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+import pinocchio as pin
+from scipy.optimize import least_squares
+
+from .data import Dataset
+from .errors import DataError, IdentifiabilityError
+from .evaluation import ErrorStats, evaluate
+from .identifiability import RCOND, Identifiability, analyse, parameter_scale
+from .kinematics import Chain, forward
+from .measurements import ROTATION_WEIGHT, Measurement, Problem, gao_pairs, unpack
+from .models import Model, make_model
+from .robots import Robot
+
+LOSSES = ("linear", "soft_l1", "huber", "cauchy")
+
+
+@dataclass(frozen=True, eq=False)
+class Calibration:
+    """What an identification found.
+
+    Attributes:
+        model: the parameterization.
+        measurement: the measurement model (its registration and tool are the initial guesses).
+        names: names of all unknowns θ (model, then instrument and tool).
+        units: their units (``m`` or ``rad``).
+        theta: the identified unknowns.
+        std: standard deviations of θ (0 for the parameters held fixed).
+        nominal_theta: the nominal model with its registration and tool fitted ("before": the
+            error the nominal kinematics is responsible for, FIGAROH's "registration only").
+        identifiability: the identifiable set and why the rest was held.
+        train_before, train_after: errors on the fitted poses.
+        test_before, test_after: errors on held-out poses, or None.
+        train_urdf, test_urdf: errors of the URDF exactly as it is: the nominal kinematics with the
+            nominal tool (the tip frame's origin, or the tool given), only the instrument
+            registered (as the papers report "before calibration").
+        n_poses: number of fitted poses.
+        n_evaluations: Jacobian evaluations of the solver.
+        message: the solver's termination message.
+    """
+
+    model: Model
+    measurement: Measurement
+    names: tuple[str, ...]
+    units: tuple[str, ...]
+    theta: np.ndarray
+    std: np.ndarray
+    nominal_theta: np.ndarray
+    identifiability: Identifiability
+    train_before: ErrorStats
+    train_after: ErrorStats
+    test_before: ErrorStats | None
+    test_after: ErrorStats | None
+    train_urdf: ErrorStats
+    test_urdf: ErrorStats | None
+    urdf_measurement: Measurement
+    urdf_theta: np.ndarray
+    n_poses: int
+    n_evaluations: int
+    message: str
+
+    @property
+    def robot(self) -> Robot:
+        """The calibrated robot (nominal description)."""
+        return self.model.robot
+
+    @property
+    def x(self) -> np.ndarray:
+        """The model parameters (first part of θ)."""
+        return self.theta[: self.model.n_params]
+
+    def chain(self) -> Chain:
+        """The calibrated chain from base to tip."""
+        return self.model.chain(self.x)
+
+    def problem(self, data: Dataset) -> Problem:
+        """The residual function of this calibration on other data (all pairs for distances)."""
+        return Problem(self.model, replace(self.measurement, pairs=None), data)
+
+    def split(self) -> tuple[np.ndarray, pin.SE3, pin.SE3]:
+        """Model parameters, ``instrument_T_base`` and ``tip_T_target`` as identified."""
+        return unpack(self.model.n_params, self.measurement, self.theta)
+
+    def base_T_tip(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Calibrated tip rotations (N, 3, 3) and positions (N, 3) [m] for joint values (N, n)."""
+        frames = forward(self.chain(), np.atleast_2d(q))
+        return frames.tip_rotation, frames.tip_translation
+
+
+def _kabsch(src: np.ndarray, dst: np.ndarray) -> pin.SE3:
+    """Rigid transform ``T`` minimising ``|T src - dst|`` (points (N, 3))."""
+    cs, cd = src.mean(axis=0), dst.mean(axis=0)
+    u, _, vt = np.linalg.svd((src - cs).T @ (dst - cd))
+    d = np.sign(np.linalg.det(vt.T @ u.T))
+    rot = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+    return pin.SE3(rot, cd - rot @ cs)
+
+
+def _project_so3(m: np.ndarray) -> np.ndarray:
+    u, _, vt = np.linalg.svd(m)
+    return u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt
+
+
+def initial_measurement(robot: Robot, data: Dataset, measurement: Measurement) -> Measurement:
+    """Closed-form first guess of the registration and tool from the nominal model.
+
+    Alternates a rigid registration of the nominal points (Kabsch) with a linear least-squares
+    solve of the tool point, then averages the tool orientation for pose data.
+    """
+    frames = forward(Chain.nominal(robot), data.q)
+    rot, pos = frames.tip_rotation, frames.tip_translation
+    reg, tool = measurement.instrument_T_base, measurement.tool
+    point = tool.translation.copy()
+    fit_reg = measurement.fit_instrument
+    for _ in range(8 if fit_reg and measurement.fit_tool else 1):
+        if fit_reg:
+            reg = _kabsch(pos + rot @ point, data.points)
+        if measurement.fit_tool:
+            lhs = (reg.rotation @ rot).reshape(-1, 3)
+            rhs = (data.points - pos @ reg.rotation.T - reg.translation).reshape(-1)
+            point = np.linalg.lstsq(lhs, rhs, rcond=None)[0]
+    tool_rot = tool.rotation
+    if measurement.kind == "pose" and measurement.fit_tool:
+        rel = np.transpose(reg.rotation @ rot, (0, 2, 1)) @ data.rotations()
+        tool_rot = _project_so3(rel.sum(axis=0))
+    return replace(measurement, instrument_T_base=reg, tool=pin.SE3(tool_rot, point))
+
+
+def _solve(problem: Problem, theta: np.ndarray, free: np.ndarray, scale: np.ndarray, loss: str, f_scale: float):
+    def fun(sub: np.ndarray) -> np.ndarray:
+        full = theta.copy()
+        full[free] = sub
+        return problem.residuals(full)
+
+    def jac(sub: np.ndarray) -> np.ndarray:
+        full = theta.copy()
+        full[free] = sub
+        return problem.jacobian(full)[:, free]
+
+    n_res = len(problem.residuals(theta))
+    method = "lm" if loss == "linear" and n_res >= free.sum() else "trf"
+    result = least_squares(
+        fun, theta[free], jac=jac, method=method, loss=loss, f_scale=f_scale,
+        x_scale=scale[free] * 1e-3, xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=200,
+    )
+    out = theta.copy()
+    out[free] = result.x
+    return out, result
+
+
+def calibrate(
+    robot: Robot,
+    data: Dataset,
+    model: str | Model = "placements",
+    measure: str | None = None,
+    *,
+    test: Dataset | None = None,
+    instrument_T_base: pin.SE3 | None = None,
+    tool: pin.SE3 | np.ndarray | None = None,
+    rotation_weight: float = ROTATION_WEIGHT,
+    pairs: str | np.ndarray = "all",
+    loss: str = "linear",
+    f_scale: float = 1e-4,
+    rcond: float = RCOND,
+) -> Calibration:
+    """Identify a kinematic model from measurements.
+
+    Args:
+        robot: the robot and its chain (see :func:`pincal.load_robot`).
+        data: the fitted poses.
+        model: ``placements``, ``poe``, ``mdh``, ``offsets`` or a :class:`~pincal.models.Model`.
+        measure: ``position``, ``pose`` or ``distance`` (default: ``pose`` when the data has
+            orientations, else ``position``).
+        test: held-out poses for the errors after calibration.
+        instrument_T_base: the known registration (default: unknown, estimated).
+        tool: the known measured point on the tip (3,) [m] or target frame (default: estimated).
+        rotation_weight: weight of orientation residuals [m/rad] for pose data.
+        pairs: pose pairs for distance data: ``all``, ``gao`` (eq. 21) or an (m, 2) array.
+        loss: ``linear`` (least squares) or a robust loss of ``scipy.optimize.least_squares``.
+        f_scale: residual size where a robust loss starts to down-weight [m].
+        rcond: relative singular-value threshold of the identifiability rank.
+
+    Raises:
+        DataError: unknown measure or loss, data that does not fit the robot.
+        IdentifiabilityError: fewer equations than identifiable parameters.
+    """
+    if tuple(data.joint_names) != robot.joint_names:
+        raise DataError(f"the data's joints {data.joint_names} are not the chain's {robot.joint_names}")
+    if loss not in LOSSES:
+        raise DataError(f"unknown loss {loss!r}: choose one of {', '.join(LOSSES)}")
+    kind = measure or ("pose" if data.has_orientation else "position")
+    mdl = make_model(model, robot) if isinstance(model, str) else model
+    if isinstance(pairs, str):
+        if pairs not in ("all", "gao"):
+            raise DataError(f"unknown pairing {pairs!r}: use all or gao")
+        pair_array = gao_pairs(len(data)) if pairs == "gao" else None
+    else:
+        pair_array = np.asarray(pairs, dtype=int)
+    tool_se3 = tool if isinstance(tool, pin.SE3) else pin.SE3(np.eye(3), np.zeros(3) if tool is None else np.asarray(tool, float))
+    measurement = Measurement(
+        kind=kind,
+        instrument_T_base=instrument_T_base or pin.SE3.Identity(),
+        fit_instrument=instrument_T_base is None,
+        tool=tool_se3,
+        fit_tool=tool is None,
+        rotation_weight=rotation_weight,
+        pairs=pair_array,
+    )
+    measurement = initial_measurement(robot, data, measurement)
+    problem = Problem(mdl, measurement, data)
+    n_model = mdl.n_params
+    length = max(0.05, float(np.sqrt(np.mean(np.sum((data.points - data.points.mean(0)) ** 2, axis=1)))))
+    scale = parameter_scale(problem.units, length)
+
+    # "Before": the nominal model with only the registration and tool fitted.
+    theta = problem.initial_theta()
+    meas_free = np.arange(problem.n_params) >= n_model
+    if meas_free.any():
+        theta, _ = _solve(problem, theta, meas_free, scale, "linear", f_scale)
+    nominal_theta = theta.copy()
+
+    candidates = np.array([name not in mdl.held for name in problem.names])
+    preference = np.ones(problem.n_params)
+    preference[:n_model] = 1.0 + 0.05 * np.linspace(0.0, 1.0, n_model)
+    preference[n_model:] = 2.0
+    ident = analyse(problem.jacobian(theta), problem.names, scale, candidates, preference, mdl.held, rcond)
+    n_res = len(problem.residuals(theta))
+    if n_res <= ident.n_identifiable:
+        per_pose = max(1, n_res // max(1, len(data)))
+        raise IdentifiabilityError(
+            f"{len(data)} poses give {n_res} equations for {ident.n_identifiable} identifiable "
+            f"parameters: measure at least {ident.n_identifiable // per_pose + 2} poses"
+        )
+    theta, result = _solve(problem, theta, ident.identifiable, scale, loss, f_scale)
+
+    # The URDF as it is: nominal tool, only the registration fitted.
+    urdf_meas = replace(measurement, tool=tool_se3, fit_tool=False)
+    urdf_problem = Problem(mdl, urdf_meas, data)
+    urdf_theta = urdf_problem.initial_theta()
+    if urdf_meas.n_instrument:
+        urdf_theta[n_model:] = theta[n_model : n_model + 6]
+        urdf_free = np.arange(urdf_problem.n_params) >= n_model
+        urdf_theta, _ = _solve(urdf_problem, urdf_theta, urdf_free, scale[: urdf_problem.n_params], "linear", f_scale)
+
+    std = np.zeros(problem.n_params)
+    free = ident.identifiable
+    jac = problem.jacobian(theta)[:, free] * scale[free]
+    dof = n_res - int(free.sum())
+    sigma2 = float(np.sum(problem.residuals(theta) ** 2)) / dof
+    cov = np.linalg.pinv(jac.T @ jac) * sigma2
+    std[free] = np.sqrt(np.clip(np.diag(cov), 0.0, None)) * scale[free]
+
+    test_meas = replace(measurement, pairs=None)
+    return Calibration(
+        model=mdl,
+        measurement=measurement,
+        names=problem.names,
+        units=problem.units,
+        theta=theta,
+        std=std,
+        nominal_theta=nominal_theta,
+        identifiability=ident,
+        train_before=evaluate(mdl, measurement, nominal_theta, data),
+        train_after=evaluate(mdl, measurement, theta, data),
+        test_before=None if test is None else evaluate(mdl, test_meas, nominal_theta, test),
+        test_after=None if test is None else evaluate(mdl, test_meas, theta, test),
+        train_urdf=evaluate(mdl, urdf_meas, urdf_theta, data),
+        urdf_measurement=urdf_meas,
+        urdf_theta=urdf_theta,
+        test_urdf=None if test is None else evaluate(mdl, replace(urdf_meas, pairs=None), urdf_theta, test),
+        n_poses=len(data),
+        n_evaluations=int(result.njev or result.nfev),
+        message=str(result.message),
+    )
