@@ -14,7 +14,7 @@ from typing import NoReturn
 import numpy as np
 import pinocchio as pin
 
-from .data import UNITS, Dataset, atomic_write, read_csv
+from .data import UNITS, Dataset, atomic_write, csv_columns, read_csv
 from .errors import DataError, NotSupportedError, PincalError
 from .measurements import MEASURES
 from .models import MODELS
@@ -48,7 +48,9 @@ def _build_parser() -> argparse.ArgumentParser:
     cal.add_argument("data", type=Path, help="measurement CSV (see contracts.md)")
     cal.add_argument("--tip", help="the measured frame (default: the robot's documented tip)")
     cal.add_argument("--model", choices=MODELS, default="placements")
-    cal.add_argument("--measure", choices=MEASURES, help="default: pose if the CSV has qw,qx,qy,qz, else position")
+    cal.add_argument(
+        "--measure", choices=MEASURES, help="default: pose if the CSV has qw,qx,qy,qz, else position"
+    )
     cal.add_argument("--test", type=Path, help="held-out poses (CSV) for the error after calibration")
     cal.add_argument("--holdout", type=float, help="fraction of the poses to hold out instead of --test")
     cal.add_argument("--seed", type=int, default=0, help="seed of the --holdout split")
@@ -56,13 +58,25 @@ def _build_parser() -> argparse.ArgumentParser:
     cal.add_argument("-o", "--output", type=Path, help="corrected URDF (not available yet)")
     cal.add_argument("--degrees", action="store_true", help="revolute joint values are in degrees")
     cal.add_argument("--units", choices=sorted(UNITS), default="m", help="unit of x,y,z and prismatic joints")
-    cal.add_argument("--instrument-frame", choices=["unknown", "base"], default="unknown",
-                     help="'base': the data is already in the robot's base frame")
-    cal.add_argument("--tool-point", type=_vector3, help="the measured point on the tip frame, X,Y,Z (data units)")
-    cal.add_argument("--pairs", choices=["all", "gao"], default="all", help="pose pairs for --measure distance")
+    cal.add_argument(
+        "--instrument-frame",
+        choices=["unknown", "base"],
+        default="unknown",
+        help="'base': the data is already in the robot's base frame",
+    )
+    cal.add_argument(
+        "--tool-point", type=_vector3, help="the measured point on the tip frame, X,Y,Z (data units)"
+    )
+    cal.add_argument(
+        "--pairs", choices=["all", "gao"], default="all", help="pose pairs for --measure distance"
+    )
     cal.add_argument("--loss", choices=LOSSES, default="linear", help="robust loss for outliers")
-    cal.add_argument("--rotation-weight", type=float, default=0.1,
-                     help="weight of orientation residuals for pose data [m/rad] (default 0.1: 1 mrad ~ 0.1 mm)")
+    cal.add_argument(
+        "--rotation-weight",
+        type=float,
+        default=0.1,
+        help="weight of orientation residuals for pose data [m/rad] (default 0.1: 1 mrad ~ 0.1 mm)",
+    )
 
     demo = sub.add_parser("demo", help="calibrate bundled data and print before/after tables")
     demo.add_argument("--seed", type=int, default=0)
@@ -74,7 +88,9 @@ def _build_parser() -> argparse.ArgumentParser:
 
 
 def _load_data(path: Path, robot: Robot, args: argparse.Namespace) -> Dataset:
-    return read_csv(path, robot.joint_names, degrees=args.degrees, units=args.units, prismatic=robot.prismatic)
+    return read_csv(
+        path, robot.joint_names, degrees=args.degrees, units=args.units, prismatic=robot.prismatic
+    )
 
 
 def _calibrate(args: argparse.Namespace) -> int:
@@ -87,17 +103,34 @@ def _calibrate(args: argparse.Namespace) -> int:
         )
     if args.test is not None and args.holdout is not None:
         raise DataError("give either --test or --holdout, not both")
-    robot = load_robot(args.robot, tip=args.tip)
+    chain = load_robot(args.robot, tip=args.tip)
+    columns = set(csv_columns(args.data))
+    present = [j for j in chain.joint_names if j in columns]
+    if not present:
+        raise DataError(
+            f"{args.data} has no column for any joint between the base and {chain.tip} "
+            f"({', '.join(chain.joint_names)}): name the columns as the URDF's joints"
+        )
+    robot = load_robot(args.robot, tip=args.tip, joints=present) if len(present) < chain.n_joints else chain
+    locked = [j for j in chain.joint_names if j not in columns]
+    if locked:
+        print(f"locked at their neutral value (no column in the data): {', '.join(locked)}")
     data = _load_data(args.data, robot, args)
     test = _load_data(args.test, robot, args) if args.test is not None else None
     if args.holdout is not None:
         data, test = data.split(args.holdout, args.seed)
     scale = UNITS[args.units]
     cal = calibrate(
-        robot, data, args.model, args.measure, test=test,
+        robot,
+        data,
+        args.model,
+        args.measure,
+        test=test,
         instrument_T_base=pin.SE3.Identity() if args.instrument_frame == "base" else None,
         tool=None if args.tool_point is None else args.tool_point * scale,
-        rotation_weight=args.rotation_weight, pairs=args.pairs, loss=args.loss,
+        rotation_weight=args.rotation_weight,
+        pairs=args.pairs,
+        loss=args.loss,
     )
     print(summary(cal))
     if args.report is not None:
@@ -113,8 +146,10 @@ def _twists(args: argparse.Namespace) -> int:
     tw = nominal_twists(robot)
     print(f"{robot.name}: {robot.n_joints} joints from the base to {robot.tip}; twists (ω, v [m]) at q = 0")
     for name, xi in zip(robot.joint_names, tw.twists):
-        print(f"  {name:24s} ω = {np.array2string(xi[3:], precision=4, suppress_small=True):26s} "
-              f"v = {np.array2string(xi[:3], precision=4, suppress_small=True)}")
+        print(
+            f"  {name:24s} ω = {np.array2string(xi[3:], precision=4, suppress_small=True):26s} "
+            f"v = {np.array2string(xi[:3], precision=4, suppress_small=True)}"
+        )
     print(f"  home: p = {np.array2string(tw.home.translation, precision=5, suppress_small=True)} m")
     rng = np.random.default_rng(0)
     worst = 0.0

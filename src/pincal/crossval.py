@@ -73,8 +73,13 @@ def _held_out_errors(cal: Calibration, data: Dataset, held: np.ndarray) -> list[
 
 
 def cross_validate(
-    robot: Robot, data: Dataset, model: str = "placements", measure: str | None = None,
-    folds: int = 7, seed: int = 0, **options: Any,
+    robot: Robot,
+    data: Dataset,
+    model: str = "placements",
+    measure: str | None = None,
+    folds: int = 7,
+    seed: int = 0,
+    **options: Any,
 ) -> CrossValidation:
     """Calibrate on K-1 folds, judge on the held-out fold, pool the held-out errors.
 

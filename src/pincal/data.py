@@ -86,6 +86,24 @@ class Dataset:
         return self.subset(np.sort(order[n_out:])), self.subset(np.sort(order[:n_out]))
 
 
+def _read_lines(path: Path) -> list[str]:
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except FileNotFoundError:
+        raise DataError(f"data file not found: {path}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise DataError(f"cannot read data file {path}: {exc}") from None
+    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
+    if not lines:
+        raise DataError(f"{path} is empty: it needs a header line and one row per pose")
+    return lines
+
+
+def csv_columns(path: str | Path) -> list[str]:
+    """The column names of a measurement CSV (its first non-comment line)."""
+    return [h.strip() for h in next(csv.reader(_read_lines(Path(path))[:1]))]
+
+
 def read_csv(
     path: str | Path,
     joint_names: Sequence[str],
@@ -108,15 +126,7 @@ def read_csv(
     path = Path(path)
     if units not in UNITS:
         raise DataError(f"unknown unit {units!r}: use m or mm")
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except FileNotFoundError:
-        raise DataError(f"data file not found: {path}") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise DataError(f"cannot read data file {path}: {exc}") from None
-    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
-    if not lines:
-        raise DataError(f"{path} is empty: it needs a header line and one row per pose")
+    lines = _read_lines(path)
     reader = csv.reader(io.StringIO("\n".join(lines)))
     header = [h.strip() for h in next(reader)]
     dupes = sorted({h for h in header if header.count(h) > 1})
@@ -142,9 +152,13 @@ def read_csv(
             try:
                 values[r, k] = float(row[c])
             except ValueError:
-                raise DataError(f"{path}: data row {r + 1}, column {wanted[k]}: {row[c]!r} is not a number") from None
+                raise DataError(
+                    f"{path}: data row {r + 1}, column {wanted[k]}: {row[c]!r} is not a number"
+                ) from None
             if not math.isfinite(values[r, k]):
-                raise DataError(f"{path}: data row {r + 1}, column {wanted[k]}: {row[c]} is not a finite number")
+                raise DataError(
+                    f"{path}: data row {r + 1}, column {wanted[k]}: {row[c]} is not a finite number"
+                )
     n = len(joint_names)
     q = values[:, :n].copy()
     prism = np.asarray(prismatic if prismatic is not None else [False] * n, dtype=bool)

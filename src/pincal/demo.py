@@ -43,10 +43,13 @@ def run(seed: int = 0) -> str:
     ur5 = load_robot("ur5")
     _, fit, test = simulate(ur5, n_fit=60, n_test=100, seed=seed)
     out.append(
-        "1. Simulated UR5 tracker experiment (seed %d): 60 fitted, 100 held-out poses, "
-        "0.03 mm noise (noise floor 0.052 mm RMS)" % seed
+        f"1. Simulated UR5 tracker experiment (seed {seed}): 60 fitted, 100 held-out poses, "
+        "0.03 mm noise (noise floor 0.052 mm RMS)"
     )
-    out.append(f"   {'model':11s} {'identifiable':>13s} {'held-out RMS [mm] before':>26s} {'after':>8s} {'max after':>10s}")
+    out.append(
+        f"   {'model':11s} {'identifiable':>13s} {'held-out RMS [mm] before':>26s}"
+        f" {'after':>8s} {'max after':>10s}"
+    )
     for kind in MODELS:
         cal = calibrate(ur5, fit, kind, test=test)
         assert cal.test_before is not None and cal.test_after is not None

@@ -148,7 +148,9 @@ def joint_jacobian(chain: Chain, frames: Frames) -> np.ndarray:
     return tip_jacobian(frames, twists)
 
 
-def right_twists(factors: list[pin.SE3], local: list[tuple[int, int, np.ndarray]], n_params: int) -> np.ndarray:
+def right_twists(
+    factors: list[pin.SE3], local: list[tuple[int, int, np.ndarray]], n_params: int
+) -> np.ndarray:
     """Right-perturbation twists of a product of factors ``C = F_0 · F_1 · ... · F_m``.
 
     Args:

@@ -174,7 +174,12 @@ class MdhModel(Model):
         for j in range(n + 1):
             head = [t.base, pin.exp6(pin.Motion(x[:6]))] if j == 0 else [_tz(t.d[j - 1] + p[j - 1, 2])]
             if j < n:
-                dh = [_rx(t.alpha[j] + p[j, 1]), _tx(t.a[j] + p[j, 0]), _ry(p[j, 4]), _rz(t.theta[j] + p[j, 3])]
+                dh = [
+                    _rx(t.alpha[j] + p[j, 1]),
+                    _tx(t.a[j] + p[j, 0]),
+                    _ry(p[j, 4]),
+                    _rz(t.theta[j] + p[j, 3]),
+                ]
             else:
                 dh = [t.tool]
             out.append(head + dh)

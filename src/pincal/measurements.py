@@ -159,7 +159,9 @@ class Problem:
             theta[k : k + 3] = self.measurement.tool.translation
         return theta
 
-    def target_frames(self, theta: np.ndarray, data: Dataset | None = None) -> tuple[Frames, np.ndarray, np.ndarray]:
+    def target_frames(
+        self, theta: np.ndarray, data: Dataset | None = None
+    ) -> tuple[Frames, np.ndarray, np.ndarray]:
         """Chain frames, ``base_R_target`` (N, 3, 3) and ``base_p_target`` (N, 3) [m]."""
         data = data or self.data
         x, _, tool = self.split(theta)

@@ -130,8 +130,14 @@ class PoeModel(Model):
     def __post_init__(self) -> None:
         names, units = [], []
         for joint in self.robot.joint_names:
-            for comp, unit in (("eta_vx", "m"), ("eta_vy", "m"), ("eta_vz", "m"),
-                               ("eta_wx", "rad"), ("eta_wy", "rad"), ("eta_wz", "rad")):
+            for comp, unit in (
+                ("eta_vx", "m"),
+                ("eta_vy", "m"),
+                ("eta_vz", "m"),
+                ("eta_wx", "rad"),
+                ("eta_wy", "rad"),
+                ("eta_wz", "rad"),
+            ):
                 names.append(f"{joint}.{comp}")
                 units.append(unit)
         self._set(names, units)

@@ -71,7 +71,9 @@ def report_dict(cal: Calibration) -> dict[str, Any]:
         "condition_number": ident.condition_number,
         "singular_values": [float(s) for s in ident.singular_values],
         "held": dict(sorted(ident.reasons.items())),
-        "rotation_weight_m_per_rad": cal.measurement.rotation_weight if cal.measurement.kind == "pose" else None,
+        "rotation_weight_m_per_rad": cal.measurement.rotation_weight
+        if cal.measurement.kind == "pose"
+        else None,
         "before_means": "nominal kinematics with the instrument registration and tool fitted",
         "urdf_means": "the URDF as it is: nominal tool, only the instrument registration fitted",
         "train": pair(cal.train_before, cal.train_after, cal.train_urdf),
@@ -105,6 +107,10 @@ def _fmt(stats: ErrorStats | None) -> str:
     return text
 
 
+def _row(label: str, *stats: ErrorStats | None) -> str:
+    return f"  {label:10s} " + " ".join(f"{_fmt(s):>21s}" for s in stats)
+
+
 def summary(cal: Calibration) -> str:
     """A readable before/after table and the identifiability summary."""
     ident = cal.identifiability
@@ -116,11 +122,9 @@ def summary(cal: Calibration) -> str:
         f"condition number {ident.condition_number:.3g}",
         f"{what} [mm], RMS / max:",
         f"  {'':10s} {'URDF as is':>21s} {'before':>21s} {'after':>21s}",
-        f"  {'fitted':10s} {_fmt(cal.train_urdf):>21s} {_fmt(cal.train_before):>21s} {_fmt(cal.train_after):>21s}",
+        _row("fitted", cal.train_urdf, cal.train_before, cal.train_after),
     ]
     if cal.test_after is not None:
-        lines.append(
-            f"  {'held out':10s} {_fmt(cal.test_urdf):>21s} {_fmt(cal.test_before):>21s} {_fmt(cal.test_after):>21s}"
-        )
+        lines.append(_row("held out", cal.test_urdf, cal.test_before, cal.test_after))
     lines.append("  (before: nominal kinematics, registration and tool fitted; URDF as is: nominal tool)")
     return "\n".join(lines)

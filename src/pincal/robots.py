@@ -213,9 +213,7 @@ def load_robot(
             raise RobotError(f"the URDF has no joint named {', '.join(sorted(unknown))}")
         off_path = wanted - {full.names[j] for j in path_ids}
         if off_path:
-            raise RobotError(
-                f"joint(s) {', '.join(sorted(off_path))} are not between the base and {tip!r}"
-            )
+            raise RobotError(f"joint(s) {', '.join(sorted(off_path))} are not between the base and {tip!r}")
     keep = [j for j in path_ids if wanted is None or full.names[j] in wanted]
     for j in keep:
         if full.joints[j].nv != 1:

@@ -108,7 +108,9 @@ def random_truth(
     if instrument:
         direction = rng.normal(size=3)
         direction /= np.linalg.norm(direction)
-        reg = pin.SE3(pin.exp3(rng.uniform(-np.pi, np.pi) * _unit(rng.normal(size=3))), direction * rng.uniform(2, 4))
+        reg = pin.SE3(
+            pin.exp3(rng.uniform(-np.pi, np.pi) * _unit(rng.normal(size=3))), direction * rng.uniform(2, 4)
+        )
     tool = pin.SE3(pin.exp3(rng.normal(0.0, 0.3, 3)), rng.normal(0.0, tool_std, 3))
     return TrueRobot(model, x.reshape(-1), reg, tool)
 

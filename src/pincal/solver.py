@@ -137,7 +137,9 @@ def initial_measurement(robot: Robot, data: Dataset, measurement: Measurement) -
     return replace(measurement, instrument_T_base=reg, tool=pin.SE3(tool_rot, point))
 
 
-def _solve(problem: Problem, theta: np.ndarray, free: np.ndarray, scale: np.ndarray, loss: str, f_scale: float):
+def _solve(
+    problem: Problem, theta: np.ndarray, free: np.ndarray, scale: np.ndarray, loss: str, f_scale: float
+):
     def fun(sub: np.ndarray) -> np.ndarray:
         full = theta.copy()
         full[free] = sub
@@ -151,8 +153,17 @@ def _solve(problem: Problem, theta: np.ndarray, free: np.ndarray, scale: np.ndar
     n_res = len(problem.residuals(theta))
     method = "lm" if loss == "linear" and n_res >= free.sum() else "trf"
     result = least_squares(
-        fun, theta[free], jac=jac, method=method, loss=loss, f_scale=f_scale,
-        x_scale=scale[free] * 1e-3, xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=200,
+        fun,
+        theta[free],
+        jac=jac,
+        method=method,
+        loss=loss,
+        f_scale=f_scale,
+        x_scale=scale[free] * 1e-3,
+        xtol=1e-12,
+        ftol=1e-12,
+        gtol=1e-12,
+        max_nfev=200,
     )
     out = theta.copy()
     out[free] = result.x
@@ -207,7 +218,11 @@ def calibrate(
         pair_array = gao_pairs(len(data)) if pairs == "gao" else None
     else:
         pair_array = np.asarray(pairs, dtype=int)
-    tool_se3 = tool if isinstance(tool, pin.SE3) else pin.SE3(np.eye(3), np.zeros(3) if tool is None else np.asarray(tool, float))
+    tool_se3 = (
+        tool
+        if isinstance(tool, pin.SE3)
+        else pin.SE3(np.eye(3), np.zeros(3) if tool is None else np.asarray(tool, float))
+    )
     measurement = Measurement(
         kind=kind,
         instrument_T_base=instrument_T_base or pin.SE3.Identity(),
@@ -251,7 +266,9 @@ def calibrate(
     if urdf_meas.n_instrument:
         urdf_theta[n_model:] = theta[n_model : n_model + 6]
         urdf_free = np.arange(urdf_problem.n_params) >= n_model
-        urdf_theta, _ = _solve(urdf_problem, urdf_theta, urdf_free, scale[: urdf_problem.n_params], "linear", f_scale)
+        urdf_theta, _ = _solve(
+            urdf_problem, urdf_theta, urdf_free, scale[: urdf_problem.n_params], "linear", f_scale
+        )
 
     std = np.zeros(problem.n_params)
     free = ident.identifiable

@@ -35,9 +35,7 @@ def chain_twists(chain: Chain) -> Twists:
     """POE twists and home transform of a chain (see :class:`pincal.kinematics.Chain`)."""
     n = chain.axes.shape[0]
     frames = forward(chain, np.zeros((1, n)))
-    joint_frames = tuple(
-        pin.SE3(frames.rotations[2 * j, 0], frames.translations[2 * j, 0]) for j in range(n)
-    )
+    joint_frames = tuple(pin.SE3(frames.rotations[2 * j, 0], frames.translations[2 * j, 0]) for j in range(n))
     twists = np.array([g.act(pin.Motion(s)).vector for g, s in zip(joint_frames, chain.axes)])
     home = pin.SE3(frames.tip_rotation[0], frames.tip_translation[0])
     return Twists(twists.reshape(n, 6), home, joint_frames)
