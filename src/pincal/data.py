@@ -35,7 +35,7 @@ class Dataset:
         q: (N, n) joint values [rad or m].
         points: (N, 3) measured point in the instrument frame [m].
         quaternions: (N, 4) measured orientation (w, x, y, z) in the instrument frame, or None.
-        rows: (N,) the row number of each pose in its source (1 = first data row).
+        rows: (N,) the row number of each pose in its source, or None for 1..N.
     """
 
     joint_names: tuple[str, ...]
@@ -44,9 +44,10 @@ class Dataset:
     quaternions: np.ndarray | None = None
     rows: np.ndarray | None = None
 
-    def __post_init__(self) -> None:
-        if self.rows is None:
-            object.__setattr__(self, "rows", np.arange(1, len(self.q) + 1))
+    @property
+    def row_numbers(self) -> np.ndarray:
+        """Row number of each pose in its source (1 = first data row)."""
+        return self.rows if self.rows is not None else np.arange(1, len(self.q) + 1)
 
     def __len__(self) -> int:
         return len(self.q)
@@ -74,8 +75,9 @@ class Dataset:
         """The poses at ``index`` (row numbers are kept)."""
         idx = np.asarray(index)
         quats = None if self.quaternions is None else self.quaternions[idx]
-        assert self.rows is not None
-        return replace(self, q=self.q[idx], points=self.points[idx], quaternions=quats, rows=self.rows[idx])
+        return replace(
+            self, q=self.q[idx], points=self.points[idx], quaternions=quats, rows=self.row_numbers[idx]
+        )
 
     def split(self, fraction: float, seed: int = 0) -> tuple[Dataset, Dataset]:
         """Random (fit, held-out) split, ``fraction`` of the poses held out."""

@@ -16,6 +16,7 @@ import numpy as np
 
 from .crossval import cross_validate
 from .data import Dataset
+from .evaluation import evaluate
 from .models import MODELS
 from .robots import load_robot
 from .simulate import simulate
@@ -51,11 +52,14 @@ def run(seed: int = 0) -> str:
         f" {'after':>8s} {'max after':>10s}"
     )
     for kind in MODELS:
-        cal = calibrate(ur5, fit, kind, test=test)
-        assert cal.test_before is not None and cal.test_after is not None
+        cal = calibrate(ur5, fit, kind)
+        before, after = (
+            evaluate(cal.model, cal.measurement, cal.nominal_theta, test),
+            evaluate(cal.model, cal.measurement, cal.theta, test),
+        )
         out.append(
             f"   {kind:11s} {cal.identifiability.n_identifiable:>6d} of {len(cal.names):<4d} "
-            f"{cal.test_before.rms_mm:>26.4f} {cal.test_after.rms_mm:>8.4f} {cal.test_after.max_mm:>10.4f}"
+            f"{before.rms_mm:>26.4f} {after.rms_mm:>8.4f} {after.max_mm:>10.4f}"
         )
     out.append("")
     data, _ = gao2013_data()

@@ -134,13 +134,14 @@ class Problem:
         self.names = (*model.names, *names)
         self.units = (*model.units, *units)
         self.n_model = model.n_params
-        self.pairs = None
+        self.pairs = np.empty((0, 2), dtype=int)
+        self.measured_distances = np.empty(0)
         if measurement.kind == "distance":
             self.pairs = measurement.pairs if measurement.pairs is not None else all_pairs(len(data))
             self.measured_distances = np.linalg.norm(
                 data.points[self.pairs[:, 0]] - data.points[self.pairs[:, 1]], axis=1
             )
-        self.measured_rotations = data.rotations() if measurement.kind == "pose" else None
+        self.measured_rotations = data.rotations() if measurement.kind == "pose" else np.empty((0, 3, 3))
 
     @property
     def n_params(self) -> int:
@@ -182,16 +183,15 @@ class Problem:
 
     def jacobian(self, theta: np.ndarray) -> np.ndarray:
         """Analytic Jacobian of :meth:`residuals` with respect to θ."""
-        jac = self._evaluate(theta, jacobian=True)[1]
-        assert jac is not None
-        return jac
+        return self._evaluate(theta, jacobian=True)[1]
 
-    def _evaluate(self, theta: np.ndarray, jacobian: bool) -> tuple[np.ndarray, np.ndarray | None]:
+    def _evaluate(self, theta: np.ndarray, jacobian: bool) -> tuple[np.ndarray, np.ndarray]:
+        """Residuals and, if asked, their Jacobian (else an empty array)."""
         m = self.measurement
         x, reg, tool = self.split(theta)
         frames, rot, pos = self.target_frames(theta)
         n = len(self.data)
-        jac_target = None
+        jac_target = np.empty((0, 6, self.n_params))
         if jacobian:
             # LOCAL_WORLD_ALIGNED Jacobian of the target frame: model columns, then tool columns.
             jt = np.zeros((n, 6, self.n_params))
@@ -208,13 +208,12 @@ class Problem:
             jac_target = jt
 
         if m.kind == "distance":
-            assert self.pairs is not None
             i, j = self.pairs[:, 0], self.pairs[:, 1]
             diff = pos[i] - pos[j]
             dist = np.linalg.norm(diff, axis=1)
             res = dist - self.measured_distances
-            if jac_target is None:
-                return res, None
+            if not jacobian:
+                return res, np.empty((0, self.n_params))
             u = diff / dist[:, None]
             jac = np.einsum("pk,pkc->pc", u, jac_target[i, :3] - jac_target[j, :3])
             return res, jac
@@ -224,13 +223,12 @@ class Problem:
         if m.kind == "position":
             res = res_p.reshape(-1)
         else:
-            assert self.measured_rotations is not None
             rot_i = reg.rotation @ rot
             err = np.transpose(self.measured_rotations, (0, 2, 1)) @ rot_i
             res_r = np.array([pin.log3(e) for e in err])
             res = np.concatenate([res_p, m.rotation_weight * res_r], axis=1).reshape(-1)
-        if jac_target is None:
-            return res, None
+        if not jacobian:
+            return res, np.empty((0, self.n_params))
 
         jac_p = reg.rotation @ jac_target[:, :3]  # (N, 3, P)
         if m.n_instrument:
