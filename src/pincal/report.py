@@ -14,7 +14,9 @@ import numpy as np
 import pinocchio as pin
 
 from .evaluation import ErrorStats
+from .models import PoeModel
 from .solver import Calibration
+from .twists import nominal_twists
 
 _TO_DISPLAY = {"m": (1e3, "mm"), "rad": (1e3, "mrad")}
 
@@ -59,6 +61,15 @@ def report_dict(cal: Calibration) -> dict[str, Any]:
         return out
 
     ident = cal.identifiability
+    extra: dict[str, Any] = {}
+    if isinstance(cal.model, PoeModel):
+        _, _, tool = cal.split()
+        home = nominal_twists(cal.robot).home
+        extra["twists"] = [
+            {"joint": j, "omega": [float(v) for v in xi[3:]], "v_mm": [float(v) * 1e3 for v in xi[:3]]}
+            for j, xi in zip(cal.robot.joint_names, cal.model.joint_twists(cal.x))
+        ]
+        extra["p_E0_mm"] = [float(v) * 1e3 for v in home.act(tool.translation)]
     return {
         "robot": cal.robot.name,
         "tip": cal.robot.tip,
@@ -80,6 +91,7 @@ def report_dict(cal: Calibration) -> dict[str, Any]:
         "test": pair(cal.test_before, cal.test_after, cal.test_urdf),
         "solver": {"jacobian_evaluations": cal.n_evaluations, "message": cal.message},
         "parameters": parameter_rows(cal),
+        **extra,
     }
 
 
