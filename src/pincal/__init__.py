@@ -13,7 +13,7 @@ from .crossval import CrossValidation, cross_validate
 from .data import Dataset, read_csv, write_csv
 from .demo import gao2013_data
 from .errors import DataError, IdentifiabilityError, NotSupportedError, PincalError, RobotError
-from .evaluation import ErrorStats, evaluate
+from .evaluation import ErrorStats, distance_errors, evaluate, pose_errors
 from .identifiability import Identifiability
 from .kinematics import Chain, forward, joint_jacobian, tip_jacobian
 from .mdh import MdhModel, MdhTable, mdh_table
@@ -56,6 +56,7 @@ __all__ = [
     "calibrate",
     "chain_twists",
     "cross_validate",
+    "distance_errors",
     "evaluate",
     "forward",
     "gao2013_data",
@@ -68,6 +69,7 @@ __all__ = [
     "mdh_table",
     "nominal_twists",
     "poe_forward",
+    "pose_errors",
     "random_truth",
     "read_csv",
     "report_dict",

@@ -3,7 +3,8 @@
 For position and pose data, each fold's held-out poses are predicted with the registration and
 tool fitted on the other folds. For distance data, the held-out errors are those of every pair
 with at least one held-out pose (the other pose may have been fitted): this is how a distance
-calibration is judged on new poses without an instrument registration.
+calibration is judged on new poses without an instrument registration. A pair whose two poses
+are held out in different folds is judged twice, once by each fold's model.
 """
 
 from __future__ import annotations
