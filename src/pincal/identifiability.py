@@ -5,7 +5,8 @@ worth its lever arm [m]); its singular values give the numerical rank ``r``; QR 
 pivoting picks ``r`` well-conditioned columns. Ties between exactly redundant columns are broken
 by a mild preference: the instrument and tool unknowns first, then joints nearer the tip, so a
 redundant base placement is reported as absorbed by the registration, and a joint's translation
-along its own axis as absorbed by the next joint's placement. Every parameter left out gets a
+along its own axis as absorbed by the next joint's placement (or, along a run of parallel axes,
+by the last placement of the run). Every parameter left out gets a
 reason: no effect on the measurements, or the kept parameters that absorb it.
 """
 

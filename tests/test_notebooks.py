@@ -1,0 +1,82 @@
+"""Execute every notebook in notebooks/ top to bottom, and check what the tour reports.
+
+A notebook fails its test on any cell error. The tour must also print the held-out RMS of its
+``placements`` calibration, which must sit at the simulation's noise floor: a broken
+calibration still runs, but misses it.
+"""
+
+from __future__ import annotations
+
+import functools
+import re
+from pathlib import Path
+
+import pytest
+
+nbformat = pytest.importorskip("nbformat")
+nbclient = pytest.importorskip("nbclient")
+pytest.importorskip("ipykernel")
+pytest.importorskip("matplotlib")
+
+NOTEBOOKS_DIR = Path(__file__).resolve().parents[1] / "notebooks"
+NOTEBOOKS = sorted(NOTEBOOKS_DIR.glob("*.ipynb"))
+TOUR = NOTEBOOKS_DIR / "00_tour.ipynb"
+
+#: RMS of the 3-D error norm of a perfect model under the simulation's 0.03 mm noise [mm].
+NOISE_FLOOR_MM = 0.052
+HELD_OUT_LINE = re.compile(r"held-out RMS after \(placements\): ([0-9.]+) mm")
+
+
+@functools.cache
+def executed(path: Path) -> nbformat.NotebookNode:
+    """The notebook at ``path`` run top to bottom in a fresh kernel (once per session)."""
+    nb = nbformat.read(path, as_version=4)
+    client = nbclient.NotebookClient(
+        nb,
+        timeout=300,
+        kernel_name="python3",
+        resources={"metadata": {"path": str(NOTEBOOKS_DIR)}},
+    )
+    client.execute()  # raises CellExecutionError on the first failing cell
+    return nb
+
+
+def output_text(nb: nbformat.NotebookNode) -> str:
+    """All stream and text/plain outputs of the code cells."""
+    parts = []
+    for cell in nb.cells:
+        for out in cell.get("outputs", []):
+            if out.get("output_type") == "stream":
+                parts.append(out.get("text", ""))
+            elif "data" in out:
+                parts.append(out["data"].get("text/plain", ""))
+    return "\n".join(parts)
+
+
+def test_notebooks_found() -> None:
+    assert TOUR in NOTEBOOKS
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.name for p in NOTEBOOKS])
+def test_notebook_runs(path: Path) -> None:
+    nb = executed(path)
+    outputs = [out for cell in nb.cells for out in cell.get("outputs", [])]
+    errors = [out for out in outputs if out.get("output_type") == "error"]
+    assert not errors, errors
+
+
+def test_notebooks_saved_without_outputs() -> None:
+    for path in NOTEBOOKS:
+        nb = nbformat.read(path, as_version=4)
+        for cell in nb.cells:
+            if cell.cell_type == "code":
+                assert not cell.outputs and cell.execution_count is None, path.name
+
+
+def test_tour_reports_calibrated_held_out_rms() -> None:
+    text = output_text(executed(TOUR))
+    found = HELD_OUT_LINE.findall(text)
+    assert len(found) == 1, "the tour must print 'held-out RMS after (placements): <x> mm' once"
+    rms = float(found[0])
+    assert 0.5 * NOISE_FLOOR_MM <= rms <= 1.2 * NOISE_FLOOR_MM, rms
+    assert "gain on the URDF as is" in text
