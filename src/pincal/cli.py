@@ -26,7 +26,7 @@ class _Parser(argparse.ArgumentParser):
     """argparse whose usage errors are one ``pincal: error:`` line and exit code 2."""
 
     def error(self, message: str) -> NoReturn:
-        raise PincalError(f"{message} (see 'pincal {self.prog.split()[-1]} --help')")
+        raise PincalError(f"{message} (see '{self.prog} --help')")
 
 
 def _vector3(text: str) -> np.ndarray:
@@ -160,10 +160,21 @@ def _twists(args: argparse.Namespace) -> int:
     return 0
 
 
+def _attach_vectors(argv: Sequence[str]) -> list[str]:
+    """Write ``--tool-point -1,2,3`` as ``--tool-point=-1,2,3``: argparse takes ``-1,2,3`` for an option."""
+    out: list[str] = []
+    for arg in argv:
+        if out and out[-1] == "--tool-point" and arg.startswith("-"):
+            out[-1] = f"--tool-point={arg}"
+        else:
+            out.append(arg)
+    return out
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``pincal`` command."""
     try:
-        args = _build_parser().parse_args(argv)
+        args = _build_parser().parse_args(_attach_vectors(sys.argv[1:] if argv is None else argv))
         if args.command == "calibrate":
             return _calibrate(args)
         if args.command == "twists":
