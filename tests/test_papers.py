@@ -89,24 +89,19 @@ def _zhang_table(cal: pincal.Calibration) -> str:
         "Zhang et al. protocol on zu3 (100 held-out poses): mean / max / std",
         f"  {'':22s} {'pincal':>26s}   {'paper':>26s}",
     ]
-    for label, stats in (("before", cal.test_before), ("after", cal.test_after)):
-        ours = (stats.mean_mm, stats.max_mm, stats.std_mm)
-        paper = ZHANG_POSITION_MM[label]
-        lines.append(
-            f"  position {label:6s} [mm]   "
-            + " ".join(f"{v:8.4f}" for v in ours)
-            + "   "
-            + " ".join(f"{v:8.4f}" for v in paper)
-        )
-    for label, stats in (("before", cal.test_before), ("after", cal.test_after)):
-        ours = (stats.rot_mean_mrad, stats.rot_max_mrad, stats.rot_std_mrad)
-        paper = ZHANG_ROTATION_MRAD[label]
-        lines.append(
-            f"  rotation {label:6s} [mrad] "
-            + " ".join(f"{v:8.4f}" for v in ours)
-            + "   "
-            + " ".join(f"{v:8.4f}" for v in paper)
-        )
+    rows = (
+        ("position", "[mm]  ", ("mean_mm", "max_mm", "std_mm"), ZHANG_POSITION_MM),
+        ("rotation", "[mrad]", ("rot_mean_mrad", "rot_max_mrad", "rot_std_mrad"), ZHANG_ROTATION_MRAD),
+    )
+    for quantity, unit, keys, published in rows:
+        for label, stats in (("before", cal.test_before), ("after", cal.test_after)):
+            ours = [getattr(stats, key) for key in keys]
+            lines.append(
+                f"  {quantity} {label:6s} {unit} "
+                + " ".join(f"{v:8.4f}" for v in ours)
+                + "   "
+                + " ".join(f"{v:8.4f}" for v in published[label])
+            )
     return "\n".join(lines)
 
 
