@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 import pinocchio as pin
@@ -27,7 +28,7 @@ import pinocchio as pin
 from .errors import PincalError
 from .kinematics import Chain
 from .robots import Robot
-from .twists import left_jacobian, nominal_twists
+from .twists import Twists, left_jacobian, nominal_twists
 
 MODELS = ("placements", "poe", "mdh", "offsets")
 _PLACEMENT_COMPONENTS = (("tx", "m"), ("ty", "m"), ("tz", "m"), ("rx", "rad"), ("ry", "rad"), ("rz", "rad"))
@@ -142,9 +143,14 @@ class PoeModel(Model):
                 units.append(unit)
         self._set(names, units)
 
+    @cached_property
+    def nominal(self) -> Twists:
+        """The nominal twists, joint frames ``G⁰_j`` and home transform."""
+        return nominal_twists(self.robot)
+
     def joint_frames(self, x: np.ndarray) -> list[pin.SE3]:
         """``G_j = exp(η_j) · G⁰_j``: frames whose local joint twist maps to ``ξ_j``."""
-        nominal = nominal_twists(self.robot).joint_frames
+        nominal = self.nominal.joint_frames
         return [pin.exp6(pin.Motion(x[6 * j : 6 * j + 6])) * g for j, g in enumerate(nominal)]
 
     def joint_twists(self, x: np.ndarray) -> np.ndarray:
@@ -154,7 +160,7 @@ class PoeModel(Model):
 
     def chain(self, x: np.ndarray) -> Chain:
         frames = self.joint_frames(x)
-        home = nominal_twists(self.robot).home
+        home = self.nominal.home
         prev = pin.SE3.Identity()
         placements = []
         for g in frames:
