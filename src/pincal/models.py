@@ -11,8 +11,9 @@ measurement model (:mod:`pincal.measurements`), not to these.
 - ``offsets``: joint zero offsets ``q_j + o_j`` [rad or m].
 - ``poe``: twists ``ξ_j = Ad(exp η_j) ξ⁰_j`` (Gao et al. 2013, eqs. 3-4): every twist keeps
   its constraints (|ω| = 1, ω·v = 0) for any η, and a correction ``δη`` composes as
-  ``Ad(exp δη) ξ`` to first order. The home transform is the nominal one; the tool point
-  (``p_E0 = M · p``) is the measurement's.
+  ``Ad(exp δη) ξ`` to first order. The tip stays where the URDF puts it on the last link, so
+  the home transform is ``M = G_n · C⁰_n`` (it moves with the last joint's frame, which is what
+  lets a URDF hold the result); the tool point (``p_E0 = M · p``) is the measurement's.
 - ``mdh``: see :mod:`pincal.mdh`.
 """
 
@@ -159,14 +160,12 @@ class PoeModel(Model):
         return np.array([g.act(pin.Motion(s)).vector for g, s in zip(frames, self.robot.axes)])
 
     def chain(self, x: np.ndarray) -> Chain:
-        frames = self.joint_frames(x)
-        home = self.nominal.home
         prev = pin.SE3.Identity()
         placements = []
-        for g in frames:
+        for g in self.joint_frames(x):
             placements.append(prev.actInv(g))
             prev = g
-        placements.append(prev.actInv(home))
+        placements.append(self.robot.placements[-1])
         return Chain(tuple(placements), self.robot.axes)
 
     def twists(self, x: np.ndarray) -> np.ndarray:
@@ -175,7 +174,8 @@ class PoeModel(Model):
         for j, g in enumerate(self.joint_frames(x)):
             local = g.inverse().action @ left_jacobian(x[6 * j : 6 * j + 6])
             out[2 * j, :, 6 * j : 6 * j + 6] = local
-            out[2 * j + 1, :, 6 * j : 6 * j + 6] = -local
+            if j < n - 1:  # the next placement G_j⁻¹ G_{j+1} holds G_j too; the tip's does not
+                out[2 * j + 1, :, 6 * j : 6 * j + 6] = -local
         return out
 
 

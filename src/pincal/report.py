@@ -16,7 +16,6 @@ import pinocchio as pin
 from .evaluation import ErrorStats
 from .models import PoeModel
 from .solver import Calibration
-from .twists import nominal_twists
 
 _TO_DISPLAY = {"m": (1e3, "mm"), "rad": (1e3, "mrad")}
 
@@ -64,7 +63,8 @@ def report_dict(cal: Calibration) -> dict[str, Any]:
     extra: dict[str, Any] = {}
     if isinstance(cal.model, PoeModel):
         _, _, tool = cal.split()
-        home = nominal_twists(cal.robot).home
+        rot, pos = cal.base_T_tip(np.zeros(cal.robot.n_joints))
+        home = pin.SE3(rot[0], pos[0])
         extra["twists"] = [
             {"joint": j, "omega": [float(v) for v in xi[3:]], "v_mm": [float(v) * 1e3 for v in xi[:3]]}
             for j, xi in zip(cal.robot.joint_names, cal.model.joint_twists(cal.x))
