@@ -364,7 +364,9 @@ ERROR_CASES = {
     "missing-z-column": (("ur5", "{data}"), _drop_column("z"), "missing column"),
     "non-numeric-cell": (("ur5", "{data}"), _set_cell(3, 2, "abc"), "abc"),
     "nan-cell": (("ur5", "{data}"), _set_cell(5, 7, "nan"), "nan"),
-    "output-urdf": (("ur5", "{data}", "-o", "{tmp}/out.urdf"), None, "-o"),
+    "output-is-input-urdf": (("ur5", "{data}", "-o", "{urdf}"), None, "input URDF"),
+    "output-folder-missing": (("ur5", "{data}", "-o", "{tmp}/no_such_dir/out.urdf"), None, "no_such_dir"),
+    "add-frame-without-output": (("ur5", "{data}", "--add-frame", "smr"), None, "--add-frame"),
     "unknown-option": (("ur5", "{data}", "--frobnicate"), None, "--frobnicate"),
     "bad-units": (("ur5", "{data}", "--units", "inch"), None, "inch"),
     "test-and-holdout": (
@@ -384,7 +386,9 @@ def test_calibrate_unusable_input(
     args, edit, fragment = ERROR_CASES[case]
     data = files.all if edit is None else _edited_csv(files.all, tmp_path / "data.csv", edit)
     before = data.read_bytes()
-    argv = [a.format(data=data, tmp=tmp_path) for a in args]
+    urdf = pincal.robots.bundled_urdf("ur5")
+    urdf_before = urdf.read_bytes()
+    argv = [a.format(data=data, tmp=tmp_path, urdf=urdf) for a in args]
     report = tmp_path / "r.json"
 
     line = _single_error_line(_run(capsys, "calibrate", *argv, "--report", report))
@@ -392,6 +396,7 @@ def test_calibrate_unusable_input(
     assert not report.exists()
     assert not (tmp_path / "out.urdf").exists()
     assert data.read_bytes() == before
+    assert urdf.read_bytes() == urdf_before
     assert not list(tmp_path.glob("*.tmp"))
 
 

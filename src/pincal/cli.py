@@ -15,11 +15,12 @@ import numpy as np
 import pinocchio as pin
 
 from .data import UNITS, Dataset, atomic_write, csv_columns, read_csv
-from .errors import DataError, NotSupportedError, PincalError
+from .errors import DataError, PincalError
 from .measurements import MEASURES
 from .models import MODELS
 from .robots import BUNDLED, Robot, load_robot
 from .solver import LOSSES, calibrate
+from .urdf_writer import check_output, write_corrected_urdf
 
 
 class _Parser(argparse.ArgumentParser):
@@ -55,7 +56,12 @@ def _build_parser() -> argparse.ArgumentParser:
     cal.add_argument("--holdout", type=float, help="fraction of the poses to hold out instead of --test")
     cal.add_argument("--seed", type=int, default=0, help="seed of the --holdout split")
     cal.add_argument("--report", type=Path, help="write the JSON report here")
-    cal.add_argument("-o", "--output", type=Path, help="corrected URDF (not available yet)")
+    cal.add_argument(
+        "-o", "--output", type=Path, help="write the corrected URDF here (and NAME.calibration.json)"
+    )
+    cal.add_argument(
+        "--add-frame", metavar="NAME", help="with -o: add a fixed frame NAME at the calibrated tool"
+    )
     cal.add_argument("--degrees", action="store_true", help="revolute joint values are in degrees")
     cal.add_argument("--units", choices=sorted(UNITS), default="m", help="unit of x,y,z and prismatic joints")
     cal.add_argument(
@@ -96,11 +102,8 @@ def _load_data(path: Path, robot: Robot, args: argparse.Namespace) -> Dataset:
 def _calibrate(args: argparse.Namespace) -> int:
     from .report import report_json, summary
 
-    if args.output is not None:
-        raise NotSupportedError(
-            "writing a corrected URDF (-o) is not available in this version; "
-            "use --report FILE.json for the identified parameters"
-        )
+    if args.add_frame and args.output is None:
+        raise DataError("--add-frame needs -o FILE.urdf")
     if args.test is not None and args.holdout is not None:
         raise DataError("give either --test or --holdout, not both")
     chain = load_robot(args.robot, tip=args.tip)
@@ -112,6 +115,8 @@ def _calibrate(args: argparse.Namespace) -> int:
             f"({', '.join(chain.joint_names)}): name the columns as the URDF's joints"
         )
     robot = load_robot(args.robot, tip=args.tip, joints=present) if len(present) < chain.n_joints else chain
+    if args.output is not None:
+        check_output(args.output, robot)
     locked = [j for j in chain.joint_names if j not in columns]
     if locked:
         print(f"locked at their neutral value (no column in the data): {', '.join(locked)}")
@@ -133,8 +138,13 @@ def _calibrate(args: argparse.Namespace) -> int:
         loss=args.loss,
     )
     print(summary(cal))
+    extra = {}
+    if args.output is not None:
+        urdf, side = write_corrected_urdf(cal, args.output, args.add_frame)
+        print(f"corrected URDF written to {urdf}; registration and tool (not in a URDF) to {side}")
+        extra = {"urdf": str(urdf), "sidecar": str(side)}
     if args.report is not None:
-        atomic_write(args.report, report_json(cal))
+        atomic_write(args.report, report_json(cal, **extra))
         print(f"report written to {args.report}")
     return 0
 

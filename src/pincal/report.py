@@ -95,8 +95,8 @@ def report_dict(cal: Calibration) -> dict[str, Any]:
     }
 
 
-def report_json(cal: Calibration) -> str:
-    """The report as JSON text (no NaN or infinity: those become null)."""
+def report_json(cal: Calibration, **extra: Any) -> str:
+    """The report as JSON text (no NaN or infinity: those become null), with ``extra`` keys."""
 
     def clean(obj: Any) -> Any:
         if isinstance(obj, float) and not np.isfinite(obj):
@@ -107,7 +107,7 @@ def report_json(cal: Calibration) -> str:
             return [clean(v) for v in obj]
         return obj
 
-    return json.dumps(clean(report_dict(cal)), indent=2) + "\n"
+    return json.dumps(clean({**report_dict(cal), **extra}), indent=2) + "\n"
 
 
 def _fmt(stats: ErrorStats | None) -> str:

@@ -1,0 +1,186 @@
+"""The corrected URDF: the identified geometry written back as joint origins, nothing else.
+
+Every model's calibrated chain (see :mod:`pincal.kinematics`) is brought to the URDF's own
+joint frames and axes, then each chain joint's ``<origin>`` is solved for:
+
+1. ``X_j``: the constant transform from the model's frame of joint ``j`` to the URDF's, taken
+   at the nominal geometry (identity for ``placements``, ``offsets`` and ``poe``; for ``mdh`` a
+   rotation taking z to the URDF axis and a shift along the axis). Then
+   ``C̃_j = X_{j-1}⁻¹ · C_j · X_j`` is the same chain with the URDF's joint axes, exactly.
+2. The tip's placement on the last link is the URDF's; whatever the model moved there must be a
+   rotation about or a shift along the last joint's axis (an ``mdh`` ``d``), which commutes with
+   that joint and moves into its origin.
+3. ``C̃_j = K_j · O'_j``, where ``K_j`` is what stands between the previous chain joint and this
+   joint's ``<origin>`` (fixed and locked joints, unchanged): ``O'_j = K_j⁻¹ · C̃_j``.
+
+Joint offsets are folded into ``<origin rpy>``, never into ``<calibration>``; axes stay as written.
+The instrument registration and the tool go to a JSON sidecar next to the URDF. Numbers are
+written with ``repr`` (shortest round-trip). The XML is parsed with entity resolution, DTD
+loading and network access off.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+from lxml import etree
+
+from .data import atomic_write
+from .errors import DataError, PincalError
+from .kinematics import Chain, forward
+from .robots import Robot
+from .solver import Calibration
+
+_PARSER = etree.XMLParser(resolve_entities=False, no_network=True, load_dtd=False, remove_comments=False)
+
+
+def _origin(element: etree._Element | None) -> pin.SE3:
+    """SE3 of a URDF ``<origin>`` (missing: identity); rpy as URDF: R = Rz(y) Ry(p) Rx(r)."""
+    if element is None:
+        return pin.SE3.Identity()
+    xyz = [float(v) for v in (element.get("xyz") or "0 0 0").split()]
+    rpy = [float(v) for v in (element.get("rpy") or "0 0 0").split()]
+    return pin.SE3(pin.rpy.rpyToMatrix(*rpy), np.array(xyz))
+
+
+def _format(values: np.ndarray) -> str:
+    return " ".join(repr(float(v) + 0.0) for v in values)
+
+
+def _set_origin(joint: etree._Element, placement: pin.SE3) -> None:
+    origin = joint.find("origin")
+    if origin is None:
+        origin = etree.SubElement(joint, "origin")
+    origin.set("xyz", _format(placement.translation))
+    origin.set("rpy", _format(pin.rpy.matrixToRpy(placement.rotation)))
+
+
+def _frames_at_zero(chain: Chain) -> list[pin.SE3]:
+    n = chain.axes.shape[0]
+    frames = forward(chain, np.zeros((1, n)))
+    return [pin.SE3(frames.rotations[2 * j, 0], frames.translations[2 * j, 0]) for j in range(n)]
+
+
+def urdf_chain(cal: Calibration) -> list[pin.SE3]:
+    """The calibrated chain's placements ``C̃_0 … C̃_{n-1}`` in the URDF's joint frames and axes.
+
+    The tip placement ``C̃_n`` is the URDF's own. Raises PincalError (a bug) if the model moved
+    the tip in a way no joint origin can hold.
+    """
+    robot = cal.robot
+    n = robot.n_joints
+    model_zero = _frames_at_zero(cal.model.chain(np.zeros(cal.model.n_params)))
+    urdf_zero = _frames_at_zero(Chain.nominal(robot))
+    x = [m.actInv(u) for m, u in zip(model_zero, urdf_zero)]
+    placements = cal.chain().placements
+    out = [placements[0] * x[0]]
+    out += [x[j - 1].actInv(placements[j] * x[j]) for j in range(1, n)]
+    tip = x[n - 1].actInv(placements[n])
+    delta = pin.log6(tip * robot.placements[n].inverse()).vector
+    axis = robot.axes[n - 1, 3:] if np.any(robot.axes[n - 1, 3:]) else robot.axes[n - 1, :3]
+    off_axis = max(np.linalg.norm(np.cross(delta[:3], axis)), np.linalg.norm(np.cross(delta[3:], axis)))
+    if off_axis > 1e-9:
+        raise PincalError(f"internal: the {cal.model.kind} model moved the tip off the last joint's axis")
+    out[n - 1] = out[n - 1] * pin.exp6(pin.Motion(delta))
+    return out
+
+
+def corrected_urdf(cal: Calibration, add_frame: str | None = None) -> bytes:
+    """The corrected URDF document.
+
+    Args:
+        cal: the calibration.
+        add_frame: if given, a fixed joint ``<add_frame>_joint`` and link ``<add_frame>`` at the
+            calibrated tool (point, and orientation for pose data) on the tip link.
+    """
+    robot = cal.robot
+    try:
+        tree = etree.parse(str(robot.urdf_path), _PARSER)
+    except (OSError, etree.XMLSyntaxError) as exc:
+        raise DataError(f"cannot parse URDF {robot.urdf_path}: {exc}") from None
+    root = tree.getroot()
+    joints = {j.get("name"): j for j in root.findall("joint")}
+    for name, c_tilde, c_nominal in zip(robot.joint_names, urdf_chain(cal), robot.placements):
+        joint = joints[name]
+        o_nominal = _origin(joint.find("origin"))
+        between = c_nominal * o_nominal.inverse()  # K_j: fixed and locked joints before this origin
+        _set_origin(joint, between.actInv(c_tilde))
+    if add_frame:
+        _add_frame(root, robot.tip, add_frame, cal)
+    return etree.tostring(tree, xml_declaration=True, encoding="UTF-8") + b"\n"
+
+
+def _add_frame(root: etree._Element, tip: str, name: str, cal: Calibration) -> None:
+    links = {link.get("name") for link in root.findall("link")}
+    if tip not in links:
+        raise DataError(f"--add-frame needs the tip {tip!r} to be a link of the URDF")
+    if name in links or root.find(f"joint[@name='{name}_joint']") is not None:
+        raise DataError(f"--add-frame {name!r}: the URDF already has a link or joint of that name")
+    _, _, tool = cal.split()
+    indent = "\n  "
+    if len(root):
+        root[-1].tail = indent
+    joint = etree.SubElement(root, "joint", name=f"{name}_joint", type="fixed")
+    joint.text = indent + "  "
+    etree.SubElement(joint, "parent", link=tip).tail = indent + "  "
+    etree.SubElement(joint, "child", link=name).tail = indent + "  "
+    origin = etree.SubElement(joint, "origin")
+    origin.tail = indent
+    placement = tool if cal.measurement.kind == "pose" else pin.SE3(np.eye(3), tool.translation)
+    _set_origin(joint, placement)
+    joint.tail = indent
+    etree.SubElement(root, "link", name=name).tail = "\n"
+
+
+def sidecar(cal: Calibration, urdf_name: str) -> dict[str, Any]:
+    """What the URDF cannot hold: the instrument registration and the tool."""
+    _, reg, tool = cal.split()
+
+    def pose(se3: pin.SE3) -> dict[str, Any]:
+        return {
+            "xyz_m": [float(v) for v in se3.translation],
+            "rpy_rad": [float(v) for v in pin.rpy.matrixToRpy(se3.rotation)],
+            "matrix": se3.homogeneous.tolist(),
+        }
+
+    fitted = cal.measurement.fit_instrument and cal.measurement.kind != "distance"
+    return {
+        "urdf": urdf_name,
+        "robot": cal.robot.name,
+        "tip": cal.robot.tip,
+        "model": cal.model.kind,
+        "measure": cal.measurement.kind,
+        "instrument_T_base": pose(reg) if fitted else None,
+        "instrument_T_base_note": "identified" if fitted else "not identified (given, or distance data)",
+        "tip_T_tool": pose(tool),
+        "tool_note": "the measured point (and target orientation for pose data) on the tip frame",
+    }
+
+
+def check_output(path: Path, robot: Robot) -> None:
+    """Refuse an output that is the input URDF or sits in a folder that does not exist."""
+    if path.resolve() == Path(robot.urdf_path).resolve():
+        raise DataError(f"-o {path} is the input URDF: write the corrected URDF to another file")
+    if not path.parent.resolve().is_dir():
+        raise DataError(f"the output folder {path.parent} does not exist: create it first")
+
+
+def write_corrected_urdf(
+    cal: Calibration, path: str | Path, add_frame: str | None = None
+) -> tuple[Path, Path]:
+    """Write the corrected URDF and its sidecar ``<stem>.calibration.json``, atomically.
+
+    Raises:
+        DataError: the output is the input URDF, or its folder does not exist.
+    """
+    path = Path(path)
+    check_output(path, cal.robot)
+    side = path.with_name(path.stem + ".calibration.json")
+    text = corrected_urdf(cal, add_frame)
+    atomic_write(path, text.decode("utf-8"))
+    atomic_write(side, json.dumps(sidecar(cal, path.name), indent=2) + "\n")
+    return path, side
