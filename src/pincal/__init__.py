@@ -24,6 +24,7 @@ from .robots import BUNDLED, Robot, load_robot
 from .simulate import TrueRobot, random_truth, simulate
 from .solver import Calibration, calibrate
 from .twists import Twists, chain_twists, gao_k, left_jacobian, nominal_twists, poe_forward
+from .urdf_writer import corrected_urdf, write_corrected_urdf
 
 __version__ = "0.1.0"
 
@@ -55,6 +56,7 @@ __all__ = [
     "all_pairs",
     "calibrate",
     "chain_twists",
+    "corrected_urdf",
     "cross_validate",
     "distance_errors",
     "evaluate",
@@ -77,5 +79,6 @@ __all__ = [
     "simulate",
     "summary",
     "tip_jacobian",
+    "write_corrected_urdf",
     "write_csv",
 ]
