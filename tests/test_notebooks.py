@@ -80,3 +80,18 @@ def test_tour_reports_calibrated_held_out_rms() -> None:
     rms = float(found[0])
     assert 0.5 * NOISE_FLOOR_MM <= rms <= 1.2 * NOISE_FLOOR_MM, rms
     assert "gain on the URDF as is" in text
+
+
+EXPORT = NOTEBOOKS_DIR / "01_calibrate_and_export.ipynb"
+EXPORT_LINE = re.compile(
+    r"held-out RMS exported URDF: ([0-9.]+) mm, calibrated model: ([0-9.]+) mm"
+)
+
+
+def test_export_reproduces_calibrated_held_out_rms() -> None:
+    """The URDF + sidecar reloaded from files predict the held-out poses as the calibration does."""
+    found = EXPORT_LINE.findall(output_text(executed(EXPORT)))
+    assert len(found) == 1, "the export notebook must print its held-out RMS line once"
+    exported, calibrated = (float(v) for v in found[0])
+    assert abs(exported - calibrated) < 1e-6, (exported, calibrated)
+    assert 0.5 * NOISE_FLOOR_MM <= exported <= 1.2 * NOISE_FLOOR_MM, exported

@@ -157,7 +157,11 @@ def sidecar(cal: Calibration, urdf_name: str) -> dict[str, Any]:
         "instrument_T_base": pose(reg) if fitted else None,
         "instrument_T_base_note": "identified" if fitted else "not identified (given, or distance data)",
         "tip_T_tool": pose(tool),
-        "tool_note": "the measured point (and target orientation for pose data) on the tip frame",
+        "tool_note": (
+            "the measured point (and target orientation for pose data) on the tip frame. Only what "
+            "was measured is calibrated: with point data, frames other than the measured point "
+            "(the tip frame's orientation, other tool frames) are not determined by the data"
+        ),
     }
 
 
