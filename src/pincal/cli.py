@@ -20,7 +20,7 @@ from .measurements import MEASURES
 from .models import MODELS
 from .robots import BUNDLED, Robot, load_robot
 from .solver import LOSSES, calibrate
-from .urdf_writer import check_output, write_corrected_urdf
+from .urdf_writer import check_frame_name, check_output, write_corrected_urdf
 
 
 class _Parser(argparse.ArgumentParser):
@@ -102,8 +102,9 @@ def _load_data(path: Path, robot: Robot, args: argparse.Namespace) -> Dataset:
 def _calibrate(args: argparse.Namespace) -> int:
     from .report import report_json, summary
 
-    if args.add_frame and args.output is None:
+    if args.add_frame is not None and args.output is None:
         raise DataError("--add-frame needs -o FILE.urdf")
+    check_frame_name(args.add_frame)
     if args.test is not None and args.holdout is not None:
         raise DataError("give either --test or --holdout, not both")
     chain = load_robot(args.robot, tip=args.tip)

@@ -22,6 +22,7 @@ loading and network access off.
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 from typing import Any
 
@@ -103,22 +104,38 @@ def corrected_urdf(cal: Calibration, add_frame: str | None = None) -> bytes:
     except (OSError, etree.XMLSyntaxError) as exc:
         raise DataError(f"cannot parse URDF {robot.urdf_path}: {exc}") from None
     root = tree.getroot()
+    check_frame_name(add_frame)
     joints = {j.get("name"): j for j in root.findall("joint")}
     for name, c_tilde, c_nominal in zip(robot.joint_names, urdf_chain(cal), robot.placements):
         joint = joints[name]
         o_nominal = _origin(joint.find("origin"))
         between = c_nominal * o_nominal.inverse()  # K_j: fixed and locked joints before this origin
         _set_origin(joint, between.actInv(c_tilde))
-    if add_frame:
+    if add_frame is not None:
         _add_frame(root, robot.tip, add_frame, cal)
-    return etree.tostring(tree, xml_declaration=True, encoding="UTF-8") + b"\n"
+    return _prolog(Path(robot.urdf_path).read_bytes(), root) + etree.tostring(root, encoding="UTF-8") + b"\n"
+
+
+def _prolog(source: bytes, root: etree._Element) -> bytes:
+    """The input's bytes before the root element (declaration, comments), kept as written."""
+    lines = source.split(b"\n")[: root.sourceline]
+    last = lines[-1]
+    start = last.find(b"<" + root.tag.encode())
+    prolog = b"\n".join([*lines[:-1], last[: max(start, 0)]])
+    return prolog if prolog.strip() else b'<?xml version="1.0" encoding="UTF-8"?>\n'
+
+
+def check_frame_name(name: str | None) -> None:
+    """Refuse an ``--add-frame`` name that is not a plain XML name."""
+    if name is not None and not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_.-]*", name):
+        raise DataError(f"--add-frame {name!r}: use letters, digits, '_', '-' or '.', starting with a letter")
 
 
 def _add_frame(root: etree._Element, tip: str, name: str, cal: Calibration) -> None:
     links = {link.get("name") for link in root.findall("link")}
     if tip not in links:
         raise DataError(f"--add-frame needs the tip {tip!r} to be a link of the URDF")
-    if name in links or root.find(f"joint[@name='{name}_joint']") is not None:
+    if name in links or f"{name}_joint" in {j.get("name") for j in root.findall("joint")}:
         raise DataError(f"--add-frame {name!r}: the URDF already has a link or joint of that name")
     _, _, tool = cal.split()
     indent = "\n  "
