@@ -6,6 +6,7 @@ Exit codes: 0 success; 2 unusable input, with one ``pincal: error: ...`` line on
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -20,6 +21,7 @@ from .measurements import MEASURES
 from .models import MODELS
 from .robots import BUNDLED, Robot, load_robot
 from .solver import LOSSES, calibrate
+from .tool import ORIENTATIONS, calibrate_tool, read_flange_poses
 from .urdf_writer import check_frame_name, check_output, write_corrected_urdf
 
 
@@ -87,10 +89,72 @@ def _build_parser() -> argparse.ArgumentParser:
     demo = sub.add_parser("demo", help="calibrate bundled data and print before/after tables")
     demo.add_argument("--seed", type=int, default=0)
 
+    tcp = sub.add_parser("tcp", help="tool centre point and tool frame from flange poses (Xiong 2012)")
+    tcp.add_argument(
+        "poses", type=Path, help="CSV: x,y,z,a,b,c (deg) or x,y,z,qw,qx,qy,qz, or joints with --robot"
+    )
+    tcp.add_argument("--orientation", choices=ORIENTATIONS, default="default")
+    tcp.add_argument("--units", choices=sorted(UNITS), default="m", help="unit of x,y,z and of the TCP")
+    tcp.add_argument("--json", type=Path, help="write the result as JSON here")
+    tcp.add_argument("--columns", type=_mapping, help="column names of the file, e.g. x=X_mm,y=Y_mm,a=A_deg")
+    tcp.add_argument("--robot", help="compute flange poses from joint columns with this robot (URDF or name)")
+    tcp.add_argument("--tip", help="with --robot: the flange frame (default: the robot's tip)")
+    tcp.add_argument("--degrees", action="store_true", help="with --robot: joint values in degrees")
+
     tw = sub.add_parser("twists", help="print the chain's nominal joint twists, checked against Pinocchio")
     tw.add_argument("robot")
     tw.add_argument("--tip")
     return parser
+
+
+def _mapping(text: str) -> dict[str, str]:
+    try:
+        pairs = [item.split("=", 1) for item in text.split(",")]
+        return {k.strip(): v.strip() for k, v in pairs}
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected NAME=COLUMN pairs separated by commas, got {text!r}"
+        ) from None
+
+
+def _tcp(args: argparse.Namespace) -> int:
+    robot = load_robot(args.robot, tip=args.tip) if args.robot else None
+    rotations, positions = read_flange_poses(args.poses, args.units, args.columns, robot, args.degrees)
+    tool = calibrate_tool(rotations, positions, args.orientation, scale=1.0 / UNITS[args.units])
+    u = args.units
+    print(f"TCP in the flange frame: ({', '.join(f'{v:.4f}' for v in tool.tcp)}) {u}")
+    print(f"  std: ({', '.join(f'{v:.4f}' for v in tool.tcp_std)}) {u}")
+    print(f"  fit error δ (eq. 10): {tool.fit_error:.4f} {u}")
+    print(f"  condition number of the TCP poses: {tool.condition_number:.3g}")
+    median = float(np.median(tool.residuals))
+    for row, res in enumerate(tool.residuals, start=1):
+        flag = (
+            "   <- far from the others: re-teach this pose?"
+            if res > 3 * median and res > tool.fit_error / 2
+            else ""
+        )
+        print(f"  pose {row}: TCP point off the common point by {res:.4f} {u}{flag}")
+    print(f"tool orientation ({args.orientation}), flange_R_tool:")
+    for line in tool.rotation:
+        print("  " + " ".join(f"{v:9.5f}" for v in line))
+    for warning in tool.warnings:
+        print(f"pincal: warning: {warning}", file=sys.stderr)
+    if args.json is not None:
+        result = {
+            "tcp": tool.tcp.tolist(),
+            "rotation": tool.rotation.tolist(),
+            "fit_error": tool.fit_error,
+            "units": u,
+            "tcp_std": tool.tcp_std.tolist(),
+            "point": tool.point.tolist(),
+            "residuals": tool.residuals.tolist(),
+            "condition_number": tool.condition_number,
+            "orientation": args.orientation,
+            "warnings": list(tool.warnings),
+        }
+        atomic_write(args.json, json.dumps(result, indent=2) + "\n")
+        print(f"written to {args.json}")
+    return 0
 
 
 def _load_data(path: Path, robot: Robot, args: argparse.Namespace) -> Dataset:
@@ -190,6 +254,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _calibrate(args)
         if args.command == "twists":
             return _twists(args)
+        if args.command == "tcp":
+            return _tcp(args)
         from .demo import run
 
         print(run(seed=args.seed))

@@ -106,6 +106,52 @@ def csv_columns(path: str | Path) -> list[str]:
     return [h.strip() for h in next(csv.reader(_read_lines(Path(path))[:1]))]
 
 
+def read_table(
+    path: str | Path, columns: Sequence[str], what: str, rename: dict[str, str] | None = None
+) -> np.ndarray:
+    """The named columns of a CSV as finite numbers (rows, columns).
+
+    Args:
+        path: the CSV file (``#`` lines are comments).
+        columns: the columns wanted, in order.
+        what: how to describe the required columns in an error message.
+        rename: optional map from wanted name to the file's column name.
+
+    Raises:
+        DataError: missing file, duplicated or missing columns, no rows, non-numeric or non-finite cells.
+    """
+    path = Path(path)
+    reader = csv.reader(io.StringIO("\n".join(_read_lines(path))))
+    header = [h.strip() for h in next(reader)]
+    dupes = sorted({h for h in header if header.count(h) > 1})
+    if dupes:
+        raise DataError(f"{path}: duplicated column(s) {', '.join(dupes)}")
+    names = [(rename or {}).get(c, c) for c in columns]
+    missing = [c for c in names if c not in header]
+    if missing:
+        raise DataError(f"{path}: missing column(s) {', '.join(missing)}; the header must name {what}")
+    rows = list(reader)
+    if not rows:
+        raise DataError(f"{path} has a header but no data rows")
+    cols = [header.index(c) for c in names]
+    values = np.empty((len(rows), len(cols)))
+    for r, row in enumerate(rows):
+        if len(row) != len(header):
+            raise DataError(f"{path}: data row {r + 1} has {len(row)} fields, the header {len(header)}")
+        for k, c in enumerate(cols):
+            try:
+                values[r, k] = float(row[c])
+            except ValueError:
+                raise DataError(
+                    f"{path}: data row {r + 1}, column {names[k]}: {row[c]!r} is not a number"
+                ) from None
+            if not math.isfinite(values[r, k]):
+                raise DataError(
+                    f"{path}: data row {r + 1}, column {names[k]}: {row[c]} is not a finite number"
+                )
+    return values
+
+
 def read_csv(
     path: str | Path,
     joint_names: Sequence[str],
@@ -125,42 +171,13 @@ def read_csv(
     Raises:
         DataError: the file is missing or malformed.
     """
-    path = Path(path)
     if units not in UNITS:
         raise DataError(f"unknown unit {units!r}: use m or mm")
-    lines = _read_lines(path)
-    reader = csv.reader(io.StringIO("\n".join(lines)))
-    header = [h.strip() for h in next(reader)]
-    dupes = sorted({h for h in header if header.count(h) > 1})
-    if dupes:
-        raise DataError(f"{path}: duplicated column(s) {', '.join(dupes)}")
-    missing = [j for j in (*joint_names, "x", "y", "z") if j not in header]
-    if missing:
-        raise DataError(
-            f"{path}: missing column(s) {', '.join(missing)}; the header must name every chain "
-            f"joint ({', '.join(joint_names)}) and x,y,z"
-        )
-    rows = list(reader)
-    if not rows:
-        raise DataError(f"{path} has a header but no data rows")
+    required = [*joint_names, "x", "y", "z"]
+    header = csv_columns(path)
     has_quat = all(c in header for c in _QUAT)
-    wanted = [*joint_names, "x", "y", "z", *(_QUAT if has_quat else ())]
-    cols = [header.index(c) for c in wanted]
-    values = np.empty((len(rows), len(wanted)))
-    for r, row in enumerate(rows):
-        if len(row) != len(header):
-            raise DataError(f"{path}: data row {r + 1} has {len(row)} fields, the header {len(header)}")
-        for k, c in enumerate(cols):
-            try:
-                values[r, k] = float(row[c])
-            except ValueError:
-                raise DataError(
-                    f"{path}: data row {r + 1}, column {wanted[k]}: {row[c]!r} is not a number"
-                ) from None
-            if not math.isfinite(values[r, k]):
-                raise DataError(
-                    f"{path}: data row {r + 1}, column {wanted[k]}: {row[c]} is not a finite number"
-                )
+    wanted = [*required, *(_QUAT if has_quat else ())]
+    values = read_table(path, wanted, f"every chain joint ({', '.join(joint_names)}) and x,y,z")
     n = len(joint_names)
     q = values[:, :n].copy()
     prism = np.asarray(prismatic if prismatic is not None else [False] * n, dtype=bool)
