@@ -23,6 +23,7 @@ from .report import report_dict, report_json, summary
 from .robots import BUNDLED, Robot, load_robot
 from .simulate import TrueRobot, random_truth, simulate
 from .solver import Calibration, calibrate
+from .tool import ToolCalibration, calibrate_tool, read_flange_poses
 from .twists import Twists, chain_twists, gao_k, left_jacobian, nominal_twists, poe_forward
 from .urdf_writer import corrected_urdf, write_corrected_urdf
 
@@ -51,10 +52,12 @@ __all__ = [
     "Problem",
     "Robot",
     "RobotError",
+    "ToolCalibration",
     "TrueRobot",
     "Twists",
     "all_pairs",
     "calibrate",
+    "calibrate_tool",
     "chain_twists",
     "corrected_urdf",
     "cross_validate",
@@ -74,6 +77,7 @@ __all__ = [
     "pose_errors",
     "random_truth",
     "read_csv",
+    "read_flange_poses",
     "report_dict",
     "report_json",
     "simulate",
