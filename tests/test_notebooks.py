@@ -95,3 +95,20 @@ def test_export_reproduces_calibrated_held_out_rms() -> None:
     exported, calibrated = (float(v) for v in found[0])
     assert abs(exported - calibrated) < 1e-6, (exported, calibrated)
     assert 0.5 * NOISE_FLOOR_MM <= exported <= 1.2 * NOISE_FLOOR_MM, exported
+
+
+TOOL = NOTEBOOKS_DIR / "02_tool_calibration.ipynb"
+TOOL_EXAMPLE_LINE = re.compile(r"TCP example: (-?[0-9.]+), (-?[0-9.]+), (-?[0-9.]+) mm")
+TOOL_STUDY_LINE = re.compile(r"RMS TCP error n=8 spread=30deg: ([0-9.]+) mm")
+
+
+def test_tool_notebook_reproduces_xiong_and_reports_study() -> None:
+    """Xiong et al. (2012), Table 1 gives the paper's TCP; the simulated study stays sub-millimetre."""
+    text = output_text(executed(TOOL))
+    found = TOOL_EXAMPLE_LINE.findall(text)
+    assert len(found) == 1, "the tool notebook must print 'TCP example: x, y, z mm' once"
+    for value, paper in zip((float(v) for v in found[0]), (119.62, -0.32, 351.90)):
+        assert abs(value - paper) <= 0.01 + 1e-9, (found[0], paper)
+    study = TOOL_STUDY_LINE.findall(text)
+    assert len(study) == 1, "the tool notebook must print its n=8, 30 deg RMS line once"
+    assert 0.0 < float(study[0]) < 1.0, study[0]
