@@ -126,14 +126,9 @@ def _tcp(args: argparse.Namespace) -> int:
     print(f"  std: ({', '.join(f'{v:.4f}' for v in tool.tcp_std)}) {u}")
     print(f"  fit error δ (eq. 10): {tool.fit_error:.4f} {u}")
     print(f"  condition number of the TCP poses: {tool.condition_number:.3g}")
-    median = float(np.median(tool.residuals))
-    for row, res in enumerate(tool.residuals, start=1):
-        flag = (
-            "   <- far from the others: re-teach this pose?"
-            if res > 3 * median and res > tool.fit_error / 2
-            else ""
-        )
-        print(f"  pose {row}: TCP point off the common point by {res:.4f} {u}{flag}")
+    for row, (res, suspect) in enumerate(zip(tool.residuals, tool.suspects), start=1):
+        flag = "   <- far from the others (fit without it): re-teach this pose?" if suspect else ""
+        print(f"  pose {row}: TCP point off the others' common point by {res:.4f} {u}{flag}")
     print(f"tool orientation ({args.orientation}), flange_R_tool:")
     for line in tool.rotation:
         print("  " + " ".join(f"{v:9.5f}" for v in line))
@@ -148,6 +143,7 @@ def _tcp(args: argparse.Namespace) -> int:
             "tcp_std": tool.tcp_std.tolist(),
             "point": tool.point.tolist(),
             "residuals": tool.residuals.tolist(),
+            "suspect_poses": [int(i) + 1 for i in np.flatnonzero(tool.suspects)],
             "condition_number": tool.condition_number,
             "orientation": args.orientation,
             "warnings": list(tool.warnings),
