@@ -67,9 +67,10 @@ def _held_out_errors(cal: Calibration, data: Dataset, held: np.ndarray) -> list[
         if cal.measurement.kind == "distance":
             pairs = all_pairs(len(data))
             pairs = pairs[np.isin(pairs, held).any(axis=1)]
-            out.append(np.abs(Problem(cal.model, replace(meas, pairs=pairs), data).residuals(theta)))
+            problem = Problem(cal.model, replace(meas, pairs=pairs), data, cal.extension)
+            out.append(np.abs(problem.residuals(theta)))
         else:
-            out.append(pose_errors(cal.model, meas, theta, data.subset(held))[0])
+            out.append(pose_errors(cal.model, meas, theta, data.subset(held), cal.extension)[0])
     return out
 
 

@@ -11,6 +11,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from .data import Dataset
+from .effects import Extension
 from .measurements import Measurement, Problem
 from .models import Model
 
@@ -57,10 +58,14 @@ class ErrorStats:
 
 
 def pose_errors(
-    model: Model, measurement: Measurement, theta: np.ndarray, data: Dataset
+    model: Model,
+    measurement: Measurement,
+    theta: np.ndarray,
+    data: Dataset,
+    extension: Extension | None = None,
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """Per-pose position error norms [m] and orientation error angles [rad] (pose data)."""
-    problem = Problem(model, measurement, data)
+    problem = Problem(model, measurement, data, extension)
     pos, rot = problem.predict(theta)
     err = np.linalg.norm(pos - data.points, axis=1)
     if measurement.kind != "pose":
@@ -70,13 +75,25 @@ def pose_errors(
     return err, np.arccos(cos)
 
 
-def distance_errors(model: Model, measurement: Measurement, theta: np.ndarray, data: Dataset) -> np.ndarray:
+def distance_errors(
+    model: Model,
+    measurement: Measurement,
+    theta: np.ndarray,
+    data: Dataset,
+    extension: Extension | None = None,
+) -> np.ndarray:
     """``|d_model - d_measured|`` [m] over the measurement's pairs (default: all pairs of ``data``)."""
-    return np.abs(Problem(model, measurement, data).residuals(theta))
+    return np.abs(Problem(model, measurement, data, extension).residuals(theta))
 
 
-def evaluate(model: Model, measurement: Measurement, theta: np.ndarray, data: Dataset) -> ErrorStats:
+def evaluate(
+    model: Model,
+    measurement: Measurement,
+    theta: np.ndarray,
+    data: Dataset,
+    extension: Extension | None = None,
+) -> ErrorStats:
     """Error statistics of the unknowns ``theta`` on ``data``, as the report states them."""
     if measurement.kind == "distance":
-        return ErrorStats.of(distance_errors(model, measurement, theta, data))
-    return ErrorStats.of(*pose_errors(model, measurement, theta, data))
+        return ErrorStats.of(distance_errors(model, measurement, theta, data, extension))
+    return ErrorStats.of(*pose_errors(model, measurement, theta, data, extension))

@@ -25,6 +25,7 @@ import numpy as np
 import pinocchio as pin
 
 from .data import Dataset
+from .effects import Extension
 from .errors import DataError
 from .kinematics import Frames, forward, skew, tip_jacobian
 from .models import Model
@@ -124,16 +125,22 @@ def unpack(n_model: int, measurement: Measurement, theta: np.ndarray) -> tuple[n
 class Problem:
     """The residual function of a model, a measurement model and a dataset."""
 
-    def __init__(self, model: Model, measurement: Measurement, data: Dataset) -> None:
+    def __init__(
+        self, model: Model, measurement: Measurement, data: Dataset, extension: Extension | None = None
+    ) -> None:
         if measurement.kind == "pose" and not data.has_orientation:
             raise DataError("--measure pose needs the orientation columns qw,qx,qy,qz")
         self.model = model
         self.measurement = measurement
         self.data = data
+        self.extension = extension
         names, units = measurement.names()
-        self.names = (*model.names, *names)
-        self.units = (*model.units, *units)
-        self.n_model = model.n_params
+        ext_names = extension.names if extension else ()
+        ext_units = extension.units if extension else ()
+        self.names = (*model.names, *ext_names, *names)
+        self.units = (*model.units, *ext_units, *units)
+        self.n_model = model.n_params + len(ext_names)
+        self.regressors = extension.regressors(data.q) if extension else np.empty((len(data), 0))
         self.pairs = np.empty((0, 2), dtype=int)
         self.measured_distances = np.empty(0)
         if measurement.kind == "distance":
@@ -160,21 +167,26 @@ class Problem:
             theta[k : k + 3] = self.measurement.tool.translation
         return theta
 
-    def target_frames(
-        self, theta: np.ndarray, data: Dataset | None = None
-    ) -> tuple[Frames, np.ndarray, np.ndarray]:
+    def reached(self, theta: np.ndarray) -> np.ndarray:
+        """The joint values the robot reaches (N, n): the commands plus the extension's error."""
+        if self.extension is None:
+            return self.data.q
+        q = self.data.q.copy()
+        q[:, self.extension.index] += self.regressors @ theta[self.model.n_params : self.n_model]
+        return q
+
+    def target_frames(self, theta: np.ndarray) -> tuple[Frames, np.ndarray, np.ndarray]:
         """Chain frames, ``base_R_target`` (N, 3, 3) and ``base_p_target`` (N, 3) [m]."""
-        data = data or self.data
         x, _, tool = self.split(theta)
-        frames = forward(self.model.chain(x), data.q)
+        frames = forward(self.model.chain(x[: self.model.n_params]), self.reached(theta))
         rot = frames.tip_rotation @ tool.rotation
         pos = frames.tip_translation + frames.tip_rotation @ tool.translation
         return frames, rot, pos
 
-    def predict(self, theta: np.ndarray, data: Dataset | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def predict(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Predicted target positions (N, 3) [m] and rotations (N, 3, 3) in the instrument frame."""
         _, reg, _ = self.split(theta)
-        _, rot, pos = self.target_frames(theta, data)
+        _, rot, pos = self.target_frames(theta)
         return pos @ reg.rotation.T + reg.translation, reg.rotation @ rot
 
     def residuals(self, theta: np.ndarray) -> np.ndarray:
@@ -195,7 +207,13 @@ class Problem:
         if jacobian:
             # LOCAL_WORLD_ALIGNED Jacobian of the target frame: model columns, then tool columns.
             jt = np.zeros((n, 6, self.n_params))
-            jt[:, :, : self.n_model] = tip_jacobian(frames, self.model.twists(x))
+            n_geo = self.model.n_params
+            jt[:, :, :n_geo] = tip_jacobian(frames, self.model.twists(x[:n_geo]))
+            if self.extension is not None:
+                joint = self.extension.index
+                axis = np.zeros((frames.rotations.shape[0], 6, 1))
+                axis[2 * joint + 1, :, 0] = self.model.chain(x[:n_geo]).axes[joint]
+                jt[:, :, n_geo : self.n_model] = tip_jacobian(frames, axis) * self.regressors[:, None, :]
             lever = pos - frames.tip_translation
             jt[:, :3, : self.n_model] += np.cross(jt[:, 3:, : self.n_model], lever[:, :, None], axis=1)
             k = self.n_model + m.n_instrument

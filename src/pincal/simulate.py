@@ -8,12 +8,13 @@ seeded and deterministic.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pinocchio as pin
 
 from .data import Dataset
+from .effects import Extension
 from .kinematics import forward
 from .models import Model, PlacementsModel
 from .robots import Robot
@@ -28,12 +29,16 @@ class TrueRobot:
         x: its parameters (the geometric errors).
         instrument_T_base: the instrument's registration.
         tool: ``tip_T_target``; its translation is the measured point on the tip [m].
+        extension: a hidden non-geometric effect, or None.
+        effect: the hidden effect's parameters.
     """
 
     model: Model
     x: np.ndarray
     instrument_T_base: pin.SE3
     tool: pin.SE3
+    extension: Extension | None = None
+    effect: np.ndarray | None = None
 
     @property
     def robot(self) -> Robot:
@@ -42,7 +47,10 @@ class TrueRobot:
 
     def target(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """True target positions (N, 3) [m] and rotations (N, 3, 3) in the instrument frame."""
-        frames = forward(self.model.chain(self.x), np.atleast_2d(q))
+        q = np.atleast_2d(q)
+        if self.extension is not None and self.effect is not None:
+            q = q + self.extension.joint_error(q, self.effect)
+        frames = forward(self.model.chain(self.x), q)
         rot = frames.tip_rotation @ self.tool.rotation
         pos = frames.tip_translation + frames.tip_rotation @ self.tool.translation
         reg = self.instrument_T_base
@@ -113,6 +121,22 @@ def random_truth(
         )
     tool = pin.SE3(pin.exp3(rng.normal(0.0, 0.3, 3)), rng.normal(0.0, tool_std, 3))
     return TrueRobot(model, x.reshape(-1), reg, tool)
+
+
+def hide_effect(
+    truth: TrueRobot, extension: Extension, q: np.ndarray, rms: float, seed: int = 0
+) -> TrueRobot:
+    """The same truth with an effect whose tip displacement over poses ``q`` has RMS ``rms`` [m].
+
+    The direction of the effect's parameters (for a harmonic, its phase) is drawn with ``seed``.
+    """
+    rng = np.random.default_rng(seed)
+    direction = _unit(rng.normal(size=extension.n_params))
+    direction *= 1e-5 / np.abs(extension.regressors(q) @ direction).max()  # a small probe, 1e-5 rad
+    base = truth.target(q)[0]
+    moved = replace(truth, extension=extension, effect=direction).target(q)[0]
+    size = float(np.sqrt(np.mean(np.sum((moved - base) ** 2, axis=1))))
+    return replace(truth, extension=extension, effect=direction * rms / size)
 
 
 def _unit(v: np.ndarray) -> np.ndarray:

@@ -15,6 +15,7 @@ import pinocchio as pin
 from scipy.optimize import least_squares
 
 from .data import Dataset
+from .effects import Extension
 from .errors import DataError, IdentifiabilityError
 from .evaluation import ErrorStats, evaluate
 from .identifiability import RCOND, Identifiability, analyse, parameter_scale
@@ -32,6 +33,7 @@ class Calibration:
 
     Attributes:
         model: the parameterization.
+        extension: the non-geometric effect identified with it, if any.
         measurement: the measurement model (its registration and tool are the initial guesses).
         names: names of all unknowns θ (model, then instrument and tool).
         units: their units (``m`` or ``rad``).
@@ -51,6 +53,7 @@ class Calibration:
     """
 
     model: Model
+    extension: Extension | None
     measurement: Measurement
     names: tuple[str, ...]
     units: tuple[str, ...]
@@ -80,21 +83,33 @@ class Calibration:
         """The model parameters (first part of θ)."""
         return self.theta[: self.model.n_params]
 
+    @property
+    def effect_params(self) -> np.ndarray:
+        """The extension's parameters (empty without one)."""
+        n = self.extension.n_params if self.extension else 0
+        return self.theta[self.model.n_params : self.model.n_params + n]
+
     def chain(self) -> Chain:
         """The calibrated chain from base to tip."""
         return self.model.chain(self.x)
 
     def problem(self, data: Dataset) -> Problem:
         """The residual function of this calibration on other data (all pairs for distances)."""
-        return Problem(self.model, replace(self.measurement, pairs=None), data)
+        return Problem(self.model, replace(self.measurement, pairs=None), data, self.extension)
 
     def split(self) -> tuple[np.ndarray, pin.SE3, pin.SE3]:
         """Model parameters, ``instrument_T_base`` and ``tip_T_target`` as identified."""
-        return unpack(self.model.n_params, self.measurement, self.theta)
+        n = self.model.n_params + (self.extension.n_params if self.extension else 0)
+        x, reg, tool = unpack(n, self.measurement, self.theta)
+        return x[: self.model.n_params], reg, tool
 
     def base_T_tip(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Calibrated tip rotations (N, 3, 3) and positions (N, 3) [m] for joint values (N, n)."""
-        frames = forward(self.chain(), np.atleast_2d(q))
+        """Calibrated tip rotations (N, 3, 3) and positions (N, 3) [m] for commanded joint values
+        (N, n), the extension's joint error included."""
+        q = np.atleast_2d(q)
+        if self.extension is not None:
+            q = q + self.extension.joint_error(q, self.effect_params)
+        frames = forward(self.chain(), q)
         return frames.tip_rotation, frames.tip_translation
 
 
@@ -184,6 +199,7 @@ def calibrate(
     loss: str = "linear",
     f_scale: float = 1e-4,
     rcond: float = RCOND,
+    extension: Extension | str | None = None,
 ) -> Calibration:
     """Identify a kinematic model from measurements.
 
@@ -201,6 +217,8 @@ def calibrate(
         loss: ``linear`` (least squares) or a robust loss of ``scipy.optimize.least_squares``.
         f_scale: residual size where a robust loss starts to down-weight [m].
         rcond: relative singular-value threshold of the identifiability rank.
+        extension: a non-geometric effect identified with the geometry (an
+            :class:`~pincal.effects.Extension` or ``EFFECT:JOINT``).
 
     Raises:
         DataError: unknown measure or loss, data that does not fit the robot.
@@ -233,10 +251,15 @@ def calibrate(
         pairs=pair_array,
     )
     measurement = initial_measurement(robot, data, measurement)
-    problem = Problem(mdl, measurement, data)
-    n_model = mdl.n_params
+    ext = Extension.parse(robot, extension) if isinstance(extension, str) else extension
+    problem = Problem(mdl, measurement, data, ext)
+    n_model = problem.n_model
     length = max(0.05, float(np.sqrt(np.mean(np.sum((data.points - data.points.mean(0)) ** 2, axis=1)))))
     scale = parameter_scale(problem.units, length)
+    if ext is not None:  # natural size of an effect: moving the joint by 1 mm at the lever arm
+        rms = np.sqrt(np.mean(problem.regressors**2, axis=0))
+        lever = 1.0 if robot.prismatic[ext.index] else length
+        scale[mdl.n_params : n_model] = 1.0 / (lever * np.where(rms > 0, rms, 1.0))
 
     # "Before": the nominal model with only the registration and tool fitted.
     theta = problem.initial_theta()
@@ -261,7 +284,7 @@ def calibrate(
 
     # The URDF as it is: nominal tool, only the registration fitted.
     urdf_meas = replace(measurement, tool=tool_se3, fit_tool=False)
-    urdf_problem = Problem(mdl, urdf_meas, data)
+    urdf_problem = Problem(mdl, urdf_meas, data, ext)
     urdf_theta = urdf_problem.initial_theta()
     if urdf_meas.n_instrument:
         urdf_theta[n_model:] = theta[n_model : n_model + 6]
@@ -279,8 +302,13 @@ def calibrate(
     std[free] = np.sqrt(np.clip(np.diag(cov), 0.0, None)) * scale[free]
 
     test_meas = replace(measurement, pairs=None)
+
+    def stats(meas: Measurement, th: np.ndarray, on: Dataset) -> ErrorStats:
+        return evaluate(mdl, meas, th, on, ext)
+
     return Calibration(
         model=mdl,
+        extension=ext,
         measurement=measurement,
         names=problem.names,
         units=problem.units,
@@ -288,14 +316,14 @@ def calibrate(
         std=std,
         nominal_theta=nominal_theta,
         identifiability=ident,
-        train_before=evaluate(mdl, measurement, nominal_theta, data),
-        train_after=evaluate(mdl, measurement, theta, data),
-        test_before=None if test is None else evaluate(mdl, test_meas, nominal_theta, test),
-        test_after=None if test is None else evaluate(mdl, test_meas, theta, test),
-        train_urdf=evaluate(mdl, urdf_meas, urdf_theta, data),
+        train_before=stats(measurement, nominal_theta, data),
+        train_after=stats(measurement, theta, data),
+        test_before=None if test is None else stats(test_meas, nominal_theta, test),
+        test_after=None if test is None else stats(test_meas, theta, test),
+        train_urdf=stats(urdf_meas, urdf_theta, data),
         urdf_measurement=urdf_meas,
         urdf_theta=urdf_theta,
-        test_urdf=None if test is None else evaluate(mdl, replace(urdf_meas, pairs=None), urdf_theta, test),
+        test_urdf=None if test is None else stats(replace(urdf_meas, pairs=None), urdf_theta, test),
         n_poses=len(data),
         n_evaluations=int(result.njev or result.nfev),
         message=str(result.message),
