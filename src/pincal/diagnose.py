@@ -1,0 +1,214 @@
+"""Diagnosis: what the rigid model still gets wrong, its physical cause, and the gain on new poses.
+
+1. Baseline: the geometric model (identifiable set only), judged by K-fold cross-validation.
+2. Candidates: every effect of :mod:`pincal.effects` on every joint, each identified together
+   with the geometry and judged by the same folds.
+3. Selection: the candidate with the lowest cross-validated RMS wins only if
+   (a) it beats the baseline's cross-validated RMS by :data:`MIN_GAIN`, and
+   (b) its fit on all poses passes an F-test against the baseline, ``p < α / (number of
+   candidates)`` (Bonferroni, α = 0.01). Otherwise the answer is ``none``: a false cause is
+   worse than no cause.
+For distance data the F-test counts ``3 N - 6`` independent equations for ``N`` poses, since
+the distances of all pairs carry no more information than the points themselves.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy import stats
+
+from .crossval import cross_validate
+from .data import Dataset
+from .effects import Extension, candidates
+from .robots import Robot
+from .solver import Calibration, calibrate
+
+#: The winner must beat the baseline's cross-validated RMS by at least this factor.
+MIN_GAIN = 1.1
+#: Family-wise significance level of the F-tests.
+ALPHA = 0.01
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One effect on one joint, as judged.
+
+    Attributes:
+        extension: the effect.
+        cv_rms_mm: cross-validated RMS [mm].
+        p_value: F-test of the extended fit on all poses against the baseline.
+        calibration: the extended fit on all poses.
+    """
+
+    extension: Extension
+    cv_rms_mm: float
+    p_value: float
+    calibration: Calibration = field(repr=False)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description."""
+        ext = self.extension
+        return {
+            "effect": ext.effect,
+            "joint": ext.joint,
+            "harmonic": ext.harmonic if ext.effect == "gear_harmonic" else None,
+            "cv_rms_mm": self.cv_rms_mm,
+            "p_value": self.p_value,
+            "parameters": {
+                n: {"value": float(v), "unit": u}
+                for n, v, u in zip(ext.names, self.calibration.effect_params, ext.units)
+            },
+        }
+
+
+@dataclass(frozen=True)
+class Diagnosis:
+    """The answer of :func:`diagnose`.
+
+    Attributes:
+        baseline: the geometric model's fit on all poses.
+        baseline_cv_rms_mm: its cross-validated RMS [mm].
+        cause: the named cause, or None.
+        candidates: every candidate, best first.
+        folds: number of folds.
+    """
+
+    baseline: Calibration = field(repr=False)
+    baseline_cv_rms_mm: float
+    cause: Candidate | None
+    candidates: tuple[Candidate, ...]
+    folds: int
+
+    @property
+    def extended_cv_rms_mm(self) -> float:
+        """Cross-validated RMS of the extended model (the baseline's when there is no cause)."""
+        return self.cause.cv_rms_mm if self.cause else self.baseline_cv_rms_mm
+
+    @property
+    def gain(self) -> float:
+        """Baseline / extended cross-validated RMS."""
+        return self.baseline_cv_rms_mm / self.extended_cv_rms_mm
+
+    def summary(self) -> str:
+        """One line a person can act on."""
+        b, a = self.baseline_cv_rms_mm, self.extended_cv_rms_mm
+        if self.cause is None:
+            return (
+                f"no effect beyond the rigid model and noise: cross-validated RMS {b:.3f} mm "
+                f"(best candidate {self.candidates[0].extension.label}, not significant)"
+            )
+        ext, p = self.cause.extension, self.cause.calibration.effect_params
+        unit = ext.units[0]
+        if ext.effect == "joint_compliance":
+            what = f"{ext.joint} deflects under gravity: {p[0]:.3g} {unit}"
+        elif ext.effect == "gear_harmonic":
+            amplitude = float(np.linalg.norm(p)) * 1e3
+            what = (
+                f"{ext.joint} has a transmission error at {ext.harmonic}x its angle: "
+                f"amplitude {amplitude:.3g} m{unit}"
+            )
+        elif ext.effect == "encoder_scale":
+            what = (
+                f"{ext.joint} angle is scaled by {1 + p[0]:.6f} "
+                f"(encoder or gear ratio off by {p[0] * 1e6:.0f} ppm)"
+            )
+        else:
+            what = (
+                f"{ext.joint} has {2 * abs(p[0]) * 1e3:.3g} m{unit} of play "
+                "between the two directions of its gravity load"
+            )
+        return f"{what}; held-out RMS {b:.3f} → {a:.3f} mm ({b / a:.1f}x)"
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON of ``contracts.md``."""
+        cause = self.cause.extension if self.cause else None
+        return {
+            "baseline": {"model": self.baseline.model.kind, "cv_rms_mm": self.baseline_cv_rms_mm},
+            "cause": {
+                "effect": cause.effect if cause else "none",
+                "joint": cause.joint if cause else None,
+                "harmonic": cause.harmonic if cause and cause.effect == "gear_harmonic" else None,
+            },
+            "extended": {"cv_rms_mm": self.extended_cv_rms_mm},
+            "gain": self.gain,
+            "summary": self.summary(),
+            "folds": self.folds,
+            "selection": f"lowest cross-validated RMS, if gain >= {MIN_GAIN} and F-test p < {ALPHA} / "
+            f"{len(self.candidates)} (Bonferroni)",
+            "candidates": [c.to_dict() for c in self.candidates],
+        }
+
+
+def _rss(cal: Calibration, data: Dataset) -> tuple[float, int]:
+    """Residual sum of squares of a fit and its number of independent equations."""
+    res = cal.problem(data).residuals(cal.theta)
+    if cal.measurement.kind != "distance":
+        return float(res @ res), len(res)
+    n_eq = 3 * len(data) - 6
+    return float(res @ res) * n_eq / len(res), n_eq
+
+
+def _f_test(base: Calibration, ext: Calibration, data: Dataset) -> float:
+    rss0, n_eq = _rss(base, data)
+    rss1, _ = _rss(ext, data)
+    extra = ext.identifiability.n_identifiable - base.identifiability.n_identifiable
+    dof = n_eq - ext.identifiability.n_identifiable
+    if extra <= 0 or dof <= 0 or rss1 <= 0:
+        return 1.0
+    f = ((rss0 - rss1) / extra) / (rss1 / dof)
+    return float(stats.f.sf(f, extra, dof))
+
+
+def diagnose(
+    robot: Robot,
+    data: Dataset,
+    model: str = "placements",
+    measure: str | None = None,
+    folds: int = 5,
+    seed: int = 0,
+    effects: list[Extension] | None = None,
+    progress: Callable[[int, int, str], None] | None = None,
+    **options: Any,
+) -> Diagnosis:
+    """Find what the rigid model gets wrong.
+
+    Args:
+        robot: the robot.
+        data: all poses.
+        model: the geometric baseline (``placements``, ``poe`` or ``mdh`` give the same fit).
+        measure: ``position``, ``pose`` or ``distance``.
+        folds: K of the cross-validation.
+        seed: seed of the folds.
+        effects: the candidates (default: every effect on every joint, see
+            :func:`pincal.effects.candidates`).
+        progress: called as ``progress(done, total, label)`` after each candidate.
+        **options: passed to :func:`pincal.calibrate` (registration, tool, ...).
+    """
+    options = {k: v for k, v in options.items() if k != "extension"}
+    pool = candidates(robot) if effects is None else effects
+    base_cv = cross_validate(robot, data, model, measure, folds, seed, **options)
+    base = calibrate(robot, data, model, measure, **options)
+    judged = []
+    for k, ext in enumerate(pool):
+        cv = cross_validate(robot, data, model, measure, folds, seed, extension=ext, **options)
+        full = calibrate(robot, data, model, measure, extension=ext, **options)
+        judged.append(Candidate(ext, cv.after.rms_mm, _f_test(base, full, data), full))
+        if progress is not None:
+            progress(k + 1, len(pool), ext.label)
+    judged.sort(key=lambda c: c.cv_rms_mm)
+    base_rms = base_cv.after.rms_mm
+    cause = None
+    if judged:
+        best = judged[0]
+        if base_rms / best.cv_rms_mm >= MIN_GAIN and best.p_value < ALPHA / len(judged):
+            cause = best
+    return Diagnosis(base, base_rms, cause, tuple(judged), folds)
+
+
+def extended_calibration(diagnosis: Diagnosis) -> Calibration:
+    """The fit on all poses with the named cause (the baseline's when there is none)."""
+    return diagnosis.cause.calibration if diagnosis.cause else diagnosis.baseline
