@@ -71,13 +71,15 @@ def analyse(
     reasons = dict(held or {})
     cand = np.flatnonzero(candidates)
     js = jacobian[:, cand] * scale[cand]
+    if js.shape[0] > js.shape[1]:  # same Gram matrix, far fewer rows: R of a QR
+        js = np.linalg.qr(js, mode="r")
     norms = np.linalg.norm(js, axis=0)
     if cand.size == 0 or not np.any(norms > 0):
         raise ValueError("no parameter has any effect on the measurements")
     sv = np.linalg.svd(js, compute_uv=False)
     tol = rcond * sv[0]
     rank = int(np.sum(sv > tol))
-    _, _, piv = scipy.linalg.qr(js * preference[cand], mode="economic", pivoting=True)
+    _, piv = scipy.linalg.qr(js * preference[cand], mode="r", pivoting=True)
     keep_local = np.sort(piv[:rank])
     keep = cand[keep_local]
     mask = np.zeros(len(names), dtype=bool)
