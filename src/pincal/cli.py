@@ -10,12 +10,13 @@ import json
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import NoReturn
+from typing import Any, NoReturn
 
 import numpy as np
 import pinocchio as pin
 
 from .data import UNITS, Dataset, atomic_write, csv_columns, read_csv
+from .effects import Extension
 from .errors import DataError, PincalError
 from .measurements import MEASURES
 from .models import MODELS
@@ -47,13 +48,7 @@ def _build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     cal = sub.add_parser("calibrate", help="identify a kinematic model from measurements")
-    cal.add_argument("robot", help=f"a .urdf path or a bundled robot ({', '.join(BUNDLED)})")
-    cal.add_argument("data", type=Path, help="measurement CSV (see contracts.md)")
-    cal.add_argument("--tip", help="the measured frame (default: the robot's documented tip)")
-    cal.add_argument("--model", choices=MODELS, default="placements")
-    cal.add_argument(
-        "--measure", choices=MEASURES, help="default: pose if the CSV has qw,qx,qy,qz, else position"
-    )
+    _add_data_options(cal)
     cal.add_argument("--test", type=Path, help="held-out poses (CSV) for the error after calibration")
     cal.add_argument("--holdout", type=float, help="fraction of the poses to hold out instead of --test")
     cal.add_argument("--seed", type=int, default=0, help="seed of the --holdout split")
@@ -64,27 +59,19 @@ def _build_parser() -> argparse.ArgumentParser:
     cal.add_argument(
         "--add-frame", metavar="NAME", help="with -o: add a fixed frame NAME at the calibrated tool"
     )
-    cal.add_argument("--degrees", action="store_true", help="revolute joint values are in degrees")
-    cal.add_argument("--units", choices=sorted(UNITS), default="m", help="unit of x,y,z and prismatic joints")
     cal.add_argument(
-        "--instrument-frame",
-        choices=["unknown", "base"],
-        default="unknown",
-        help="'base': the data is already in the robot's base frame",
-    )
-    cal.add_argument(
-        "--tool-point", type=_vector3, help="the measured point on the tip frame, X,Y,Z (data units)"
+        "--extend", metavar="EFFECT:JOINT", help="identify a non-geometric effect too (as diagnose names it)"
     )
     cal.add_argument(
         "--pairs", choices=["all", "gao"], default="all", help="pose pairs for --measure distance"
     )
-    cal.add_argument("--loss", choices=LOSSES, default="linear", help="robust loss for outliers")
-    cal.add_argument(
-        "--rotation-weight",
-        type=float,
-        default=0.1,
-        help="weight of orientation residuals for pose data [m/rad] (default 0.1: 1 mrad ~ 0.1 mm)",
-    )
+
+    diag = sub.add_parser("diagnose", help="name what the rigid model gets wrong, and the gain")
+    _add_data_options(diag)
+    diag.add_argument("--json", type=Path, help="write the diagnosis as JSON here")
+    diag.add_argument("--plots", type=Path, metavar="DIR", help="write a PNG of the named cause here")
+    diag.add_argument("--folds", type=int, default=5, help="folds of the cross-validation")
+    diag.add_argument("--seed", type=int, default=0, help="seed of the folds")
 
     demo = sub.add_parser("demo", help="calibrate bundled data and print before/after tables")
     demo.add_argument("--seed", type=int, default=0)
@@ -105,6 +92,100 @@ def _build_parser() -> argparse.ArgumentParser:
     tw.add_argument("robot")
     tw.add_argument("--tip")
     return parser
+
+
+def _add_data_options(cmd: argparse.ArgumentParser) -> None:
+    cmd.add_argument("robot", help=f"a .urdf path or a bundled robot ({', '.join(BUNDLED)})")
+    cmd.add_argument("data", type=Path, help="measurement CSV (see contracts.md)")
+    cmd.add_argument("--tip", help="the measured frame (default: the robot's documented tip)")
+    cmd.add_argument("--model", choices=MODELS, default="placements")
+    cmd.add_argument(
+        "--measure", choices=MEASURES, help="default: pose if the CSV has qw,qx,qy,qz, else position"
+    )
+    cmd.add_argument("--degrees", action="store_true", help="revolute joint values are in degrees")
+    cmd.add_argument("--units", choices=sorted(UNITS), default="m", help="unit of x,y,z and prismatic joints")
+    cmd.add_argument(
+        "--instrument-frame",
+        choices=["unknown", "base"],
+        default="unknown",
+        help="'base': the data is already in the robot's base frame",
+    )
+    cmd.add_argument(
+        "--tool-point", type=_vector3, help="the measured point on the tip frame, X,Y,Z (data units)"
+    )
+    cmd.add_argument("--loss", choices=LOSSES, default="linear", help="robust loss for outliers")
+    cmd.add_argument(
+        "--rotation-weight",
+        type=float,
+        default=0.1,
+        help="weight of orientation residuals for pose data [m/rad] (default 0.1: 1 mrad ~ 0.1 mm)",
+    )
+
+
+def _robot(args: argparse.Namespace) -> Robot:
+    """The chain, with joints that have no column in the data locked (said on stdout)."""
+    chain = load_robot(args.robot, tip=args.tip)
+    columns = set(csv_columns(args.data))
+    present = [j for j in chain.joint_names if j in columns]
+    if not present:
+        raise DataError(
+            f"{args.data} has no column for any joint between the base and {chain.tip} "
+            f"({', '.join(chain.joint_names)}): name the columns as the URDF's joints"
+        )
+    locked = [j for j in chain.joint_names if j not in columns]
+    if not locked:
+        return chain
+    print(f"locked at their neutral value (no column in the data): {', '.join(locked)}")
+    return load_robot(args.robot, tip=args.tip, joints=present)
+
+
+def _options(args: argparse.Namespace) -> dict[str, Any]:
+    """Keyword arguments of :func:`pincal.calibrate` from the shared options."""
+    return {
+        "instrument_T_base": pin.SE3.Identity() if args.instrument_frame == "base" else None,
+        "tool": None if args.tool_point is None else args.tool_point * UNITS[args.units],
+        "rotation_weight": args.rotation_weight,
+        "loss": args.loss,
+    }
+
+
+def _diagnose(args: argparse.Namespace) -> int:
+    from .diagnose import diagnose
+    from .plots import plot_diagnosis
+
+    if args.plots is not None and not args.plots.is_dir():
+        raise DataError(f"--plots {args.plots}: the folder does not exist, create it first")
+    robot = _robot(args)
+    data = _load_data(args.data, robot, args)
+
+    def progress(done: int, total: int, label: str) -> None:
+        print(f"\r  candidates {done}/{total} ({label})".ljust(72), end="", file=sys.stderr, flush=True)
+
+    result = diagnose(
+        robot,
+        data,
+        args.model,
+        args.measure,
+        folds=args.folds,
+        seed=args.seed,
+        progress=progress if sys.stderr.isatty() else None,
+        **_options(args),
+    )
+    if sys.stderr.isatty():
+        print(file=sys.stderr)
+    print(
+        f"baseline {args.model}: cross-validated RMS {result.baseline_cv_rms_mm:.4f} mm ({args.folds} folds)"
+    )
+    for cand in result.candidates[:5]:
+        print(f"  {cand.extension.label:42s} CV RMS {cand.cv_rms_mm:.4f} mm  F-test p = {cand.p_value:.2g}")
+    print(result.summary())
+    if args.plots is not None and result.cause is not None and result.baseline.measurement.kind != "distance":
+        path = plot_diagnosis(result, data, args.plots / f"diagnose_{result.cause.extension.effect}.png")
+        print(f"plot written to {path}")
+    if args.json is not None:
+        atomic_write(args.json, json.dumps(result.to_dict(), indent=2) + "\n")
+        print(f"written to {args.json}")
+    return 0
 
 
 def _mapping(text: str) -> dict[str, str]:
@@ -167,36 +248,23 @@ def _calibrate(args: argparse.Namespace) -> int:
     check_frame_name(args.add_frame)
     if args.test is not None and args.holdout is not None:
         raise DataError("give either --test or --holdout, not both")
-    chain = load_robot(args.robot, tip=args.tip)
-    columns = set(csv_columns(args.data))
-    present = [j for j in chain.joint_names if j in columns]
-    if not present:
-        raise DataError(
-            f"{args.data} has no column for any joint between the base and {chain.tip} "
-            f"({', '.join(chain.joint_names)}): name the columns as the URDF's joints"
-        )
-    robot = load_robot(args.robot, tip=args.tip, joints=present) if len(present) < chain.n_joints else chain
+    robot = _robot(args)
     if args.output is not None:
         check_output(args.output, robot)
-    locked = [j for j in chain.joint_names if j not in columns]
-    if locked:
-        print(f"locked at their neutral value (no column in the data): {', '.join(locked)}")
+    extension = Extension.parse(robot, args.extend) if args.extend else None
     data = _load_data(args.data, robot, args)
     test = _load_data(args.test, robot, args) if args.test is not None else None
     if args.holdout is not None:
         data, test = data.split(args.holdout, args.seed)
-    scale = UNITS[args.units]
     cal = calibrate(
         robot,
         data,
         args.model,
         args.measure,
         test=test,
-        instrument_T_base=pin.SE3.Identity() if args.instrument_frame == "base" else None,
-        tool=None if args.tool_point is None else args.tool_point * scale,
-        rotation_weight=args.rotation_weight,
         pairs=args.pairs,
-        loss=args.loss,
+        extension=extension,
+        **_options(args),
     )
     print(summary(cal))
     extra = {}
@@ -252,6 +320,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _twists(args)
         if args.command == "tcp":
             return _tcp(args)
+        if args.command == "diagnose":
+            return _diagnose(args)
         from .demo import run
 
         print(run(seed=args.seed))

@@ -189,6 +189,15 @@ class Problem:
         _, rot, pos = self.target_frames(theta)
         return pos @ reg.rotation.T + reg.translation, reg.rotation @ rot
 
+    def joint_sensitivity(self, theta: np.ndarray, joint: int) -> np.ndarray:
+        """How each pose's measured point moves per unit of joint ``joint`` (N, 3), instrument frame."""
+        x, reg, _ = self.split(theta)
+        frames, _, pos = self.target_frames(theta)
+        axis = np.zeros((frames.rotations.shape[0], 6, 1))
+        axis[2 * joint + 1, :, 0] = self.model.chain(x[: self.model.n_params]).axes[joint]
+        jac = tip_jacobian(frames, axis)[:, :, 0]
+        return (jac[:, :3] + np.cross(jac[:, 3:], pos - frames.tip_translation)) @ reg.rotation.T
+
     def residuals(self, theta: np.ndarray) -> np.ndarray:
         """Stacked residuals [m] (see the module docstring)."""
         return self._evaluate(theta, jacobian=False)[0]

@@ -33,7 +33,7 @@ def parameter_rows(cal: Calibration) -> list[dict[str, Any]]:
     rows = []
     reasons = cal.identifiability.reasons
     for i, (name, unit) in enumerate(zip(cal.names, cal.units)):
-        factor, shown = _TO_DISPLAY[unit]
+        factor, shown = _TO_DISPLAY.get(unit, (1.0, unit))
         value = absolute.get(name, float(cal.theta[i]))
         row: dict[str, Any] = {
             "name": name,

@@ -174,6 +174,18 @@ def sidecar(cal: Calibration, urdf_name: str) -> dict[str, Any]:
         "instrument_T_base": pose(reg) if fitted else None,
         "instrument_T_base_note": "identified" if fitted else "not identified (given, or distance data)",
         "tip_T_tool": pose(tool),
+        "extension": None
+        if cal.extension is None
+        else {
+            "effect": cal.extension.effect,
+            "joint": cal.extension.joint,
+            "harmonic": cal.extension.harmonic,
+            "parameters": {
+                n: {"value": float(v), "unit": u}
+                for n, v, u in zip(cal.extension.names, cal.effect_params, cal.extension.units)
+            },
+            "note": "a joint-angle error the URDF cannot hold: command q, the joint reaches q + effect",
+        },
         "tool_note": (
             "the measured point (and target orientation for pose data) on the tip frame. Only what "
             "was measured is calibrated: with point data, frames other than the measured point "
