@@ -1,0 +1,36 @@
+"""Regenerate the README's worked diagnosis: a hidden joint compliance on a simulated UR5.
+
+Usage: python benchmarks/readme_figures.py [--out benchmarks/figures/diagnose_compliance.png]
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+import pincal
+from pincal.diagnose import diagnose
+from pincal.effects import Extension
+from pincal.plots import plot_diagnosis
+from pincal.simulate import hide_effect
+
+
+def main() -> None:
+    """Simulate, hide the effect, diagnose, write the plot and print the summary."""
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--out", type=Path, default=Path("benchmarks/figures/diagnose_compliance.png"))
+    args = parser.parse_args()
+    robot = pincal.load_robot("ur5")
+    truth, fit, _ = pincal.simulate(robot, n_fit=80, n_test=1, seed=0)
+    ext = Extension.parse(robot, "joint_compliance:shoulder_lift_joint")
+    truth = hide_effect(truth, ext, fit.q, 0.5e-3, seed=0)
+    fit = truth.measure(fit.q, 3e-5, None, seed=10)
+    result = diagnose(robot, fit)
+    print(result.summary())
+    print(f"hidden compliance {truth.effect[0]:.4g} rad/N·m")
+    print(f"plot written to {plot_diagnosis(result, fit, args.out)}")
+
+
+if __name__ == "__main__":
+    main()
