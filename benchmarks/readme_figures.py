@@ -8,7 +8,6 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-
 import pincal
 from pincal.diagnose import diagnose
 from pincal.effects import Extension
