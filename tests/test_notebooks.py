@@ -112,3 +112,17 @@ def test_tool_notebook_reproduces_xiong_and_reports_study() -> None:
     study = TOOL_STUDY_LINE.findall(text)
     assert len(study) == 1, "the tool notebook must print its n=8, 30 deg RMS line once"
     assert 0.0 < float(study[0]) < 1.0, study[0]
+
+
+DIAGNOSE = NOTEBOOKS_DIR / "03_diagnose.ipynb"
+DIAGNOSE_LINE = re.compile(r"diagnosis: (\S+), held-out RMS ([0-9.]+) -> ([0-9.]+) mm")
+
+
+def test_diagnose_notebook_names_hidden_compliance() -> None:
+    """The hidden shoulder compliance is named, and the extended model reaches the noise floor."""
+    found = DIAGNOSE_LINE.findall(output_text(executed(DIAGNOSE)))
+    assert len(found) == 1, "the diagnose notebook must print its 'diagnosis: ...' line once"
+    label, rigid, extended = found[0][0], float(found[0][1]), float(found[0][2])
+    assert label == "joint_compliance:shoulder_lift_joint", label
+    assert rigid >= 3 * extended, (rigid, extended)
+    assert extended <= 1.5 * NOISE_FLOOR_MM, extended

@@ -12,6 +12,8 @@ Load a robot, read or simulate measurements, calibrate, read the report::
 from .crossval import CrossValidation, cross_validate
 from .data import Dataset, read_csv, write_csv
 from .demo import gao2013_data
+from .diagnose import Candidate, Diagnosis
+from .effects import EFFECTS, Extension
 from .errors import DataError, IdentifiabilityError, NotSupportedError, PincalError, RobotError
 from .evaluation import ErrorStats, distance_errors, evaluate, pose_errors
 from .identifiability import Identifiability
@@ -19,9 +21,10 @@ from .kinematics import Chain, forward, joint_jacobian, tip_jacobian
 from .mdh import MdhModel, MdhTable, mdh_table
 from .measurements import Measurement, Problem, all_pairs, gao_pairs
 from .models import MODELS, Model, OffsetsModel, PlacementsModel, PoeModel, make_model
+from .plots import plot_diagnosis
 from .report import report_dict, report_json, summary
 from .robots import BUNDLED, Robot, load_robot
-from .simulate import TrueRobot, random_truth, simulate
+from .simulate import TrueRobot, hide_effect, random_truth, simulate
 from .solver import Calibration, calibrate
 from .tool import ToolCalibration, calibrate_tool, read_flange_poses
 from .twists import Twists, chain_twists, gao_k, left_jacobian, nominal_twists, poe_forward
@@ -31,13 +34,17 @@ __version__ = "0.1.0"
 
 __all__ = [
     "BUNDLED",
+    "EFFECTS",
     "MODELS",
     "Calibration",
+    "Candidate",
     "Chain",
     "CrossValidation",
     "DataError",
+    "Diagnosis",
     "Dataset",
     "ErrorStats",
+    "Extension",
     "IdentifiabilityError",
     "Identifiability",
     "MdhModel",
@@ -67,12 +74,14 @@ __all__ = [
     "gao2013_data",
     "gao_k",
     "gao_pairs",
+    "hide_effect",
     "joint_jacobian",
     "left_jacobian",
     "load_robot",
     "make_model",
     "mdh_table",
     "nominal_twists",
+    "plot_diagnosis",
     "poe_forward",
     "pose_errors",
     "random_truth",

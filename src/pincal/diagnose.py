@@ -121,7 +121,7 @@ class Diagnosis:
                 f"{ext.joint} has {2 * abs(p[0]) * 1e3:.3g} m{unit} of play "
                 "between the two directions of its gravity load"
             )
-        return f"{what}; held-out RMS {b:.3f} → {a:.3f} mm ({b / a:.1f}x)"
+        return f"{what}; held-out RMS {b:.3f} → {a:.3f} mm ({b / a:.1f}x, {self.folds}-fold CV)"
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON of ``contracts.md``."""

@@ -8,7 +8,8 @@ together with the geometry:
   (``pin.computeGeneralizedGravity`` with the URDF's inertias, gravity along -z of the base)
   [rad/(N·m)];
 - ``gear_harmonic``: ``a · sin(h q_j) + b · cos(h q_j)`` for ``h`` = 1 or 2 [rad];
-- ``encoder_scale``: ``s · q_j`` (a gear-ratio or encoder scale error) [rad/rad];
+- ``encoder_scale``: ``s · (q_j - q_mid)`` (a gear-ratio or encoder scale error), about the middle
+  of the joint's range (0 for unlimited joints), since a constant part is a zero offset [rad/rad];
 - ``backlash``: ``b · sign(τ_j(q))``, the flank of the gear play gravity pushes the joint to [rad].
 
 For a prismatic joint the same hold in metres and newtons.
@@ -115,7 +116,9 @@ class Extension:
         if self.effect == "gear_harmonic":
             return np.column_stack([np.sin(self.harmonic * qj), np.cos(self.harmonic * qj)])
         if self.effect == "encoder_scale":
-            return qj[:, None].copy()
+            lo, hi = self.robot.lower[self.index], self.robot.upper[self.index]
+            middle = 0.5 * (lo + hi) if np.isfinite(lo) and np.isfinite(hi) else 0.0
+            return (qj - middle)[:, None]
         torque = gravity_torques(self.robot, q)[:, self.index]
         return (torque if self.effect == "joint_compliance" else np.sign(torque))[:, None]
 

@@ -33,10 +33,7 @@ def plot_diagnosis(diagnosis: Diagnosis, data: Dataset, path: str | Path) -> Pat
     Raises:
         DataError: no cause was named, or the data are distances (no per-pose residual).
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure  # no pyplot: the caller's backend and figures stay as they are
 
     if diagnosis.cause is None:
         raise DataError("nothing to plot: the diagnosis named no cause")
@@ -50,7 +47,8 @@ def plot_diagnosis(diagnosis: Diagnosis, data: Dataset, path: str | Path) -> Pat
         x, xlabel = data.q[:, j], f"{ext.joint} angle [rad]"
     order = np.argsort(x)
     effect = ext.regressors(data.q) @ diagnosis.cause.calibration.effect_params
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=True)
+    fig = Figure(figsize=(10, 4))
+    axes = fig.subplots(1, 2, sharey=True)
     for ax, cal, title in (
         (axes[0], diagnosis.baseline, f"rigid model (CV RMS {diagnosis.baseline_cv_rms_mm:.3f} mm)"),
         (
@@ -70,5 +68,4 @@ def plot_diagnosis(diagnosis: Diagnosis, data: Dataset, path: str | Path) -> Pat
     fig.tight_layout()
     out = Path(path)
     fig.savefig(out, dpi=110)
-    plt.close(fig)
     return out
