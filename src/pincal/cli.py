@@ -16,7 +16,7 @@ import numpy as np
 import pinocchio as pin
 
 from .data import UNITS, Dataset, atomic_write, csv_columns, read_csv
-from .effects import Extension
+from .effects import Extension, Payload
 from .errors import DataError, PincalError
 from .measurements import MEASURES
 from .models import MODELS
@@ -113,6 +113,9 @@ def _add_data_options(cmd: argparse.ArgumentParser) -> None:
     cmd.add_argument(
         "--tool-point", type=_vector3, help="the measured point on the tip frame, X,Y,Z (data units)"
     )
+    cmd.add_argument(
+        "--payload", type=Payload.parse, metavar="MASS,X,Y,Z", help="load on the tip [kg; m in the tip frame]"
+    )
     cmd.add_argument("--loss", choices=LOSSES, default="linear", help="robust loss for outliers")
     cmd.add_argument(
         "--rotation-weight",
@@ -168,6 +171,7 @@ def _diagnose(args: argparse.Namespace) -> int:
         args.measure,
         folds=args.folds,
         seed=args.seed,
+        payload=args.payload,
         progress=progress if sys.stderr.isatty() else None,
         **_options(args),
     )
@@ -251,7 +255,7 @@ def _calibrate(args: argparse.Namespace) -> int:
     robot = _robot(args)
     if args.output is not None:
         check_output(args.output, robot)
-    extension = Extension.parse(robot, args.extend) if args.extend else None
+    extension = Extension.parse(robot, args.extend, args.payload) if args.extend else None
     data = _load_data(args.data, robot, args)
     test = _load_data(args.test, robot, args) if args.test is not None else None
     if args.holdout is not None:

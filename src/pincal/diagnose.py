@@ -23,7 +23,7 @@ from scipy import stats
 
 from .crossval import cross_validate
 from .data import Dataset
-from .effects import Extension, candidates
+from .effects import Extension, Payload, candidates
 from .robots import Robot
 from .solver import Calibration, calibrate
 
@@ -171,6 +171,7 @@ def diagnose(
     folds: int = 5,
     seed: int = 0,
     effects: list[Extension] | None = None,
+    payload: Payload | None = None,
     progress: Callable[[int, int, str], None] | None = None,
     **options: Any,
 ) -> Diagnosis:
@@ -185,11 +186,12 @@ def diagnose(
         seed: seed of the folds.
         effects: the candidates (default: every effect on every joint, see
             :func:`pincal.effects.candidates`).
+        payload: a load on the tip, for the gravity torques.
         progress: called as ``progress(done, total, label)`` after each candidate.
         **options: passed to :func:`pincal.calibrate` (registration, tool, ...).
     """
     options = {k: v for k, v in options.items() if k != "extension"}
-    pool = candidates(robot) if effects is None else effects
+    pool = candidates(robot, payload) if effects is None else effects
     base_cv = cross_validate(robot, data, model, measure, folds, seed, **options)
     base = calibrate(robot, data, model, measure, **options)
     judged = []

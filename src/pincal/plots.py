@@ -42,7 +42,7 @@ def plot_diagnosis(diagnosis: Diagnosis, data: Dataset, path: str | Path) -> Pat
     ext = diagnosis.cause.extension
     robot, j = ext.robot, ext.index
     if ext.effect in ("joint_compliance", "backlash"):
-        x, xlabel = gravity_torques(robot, data.q)[:, j], f"gravity torque on {ext.joint} [N·m]"
+        x, xlabel = gravity_torques(robot, data.q, ext.payload)[:, j], f"gravity torque on {ext.joint} [N·m]"
     else:
         x, xlabel = data.q[:, j], f"{ext.joint} angle [rad]"
     order = np.argsort(x)
