@@ -148,6 +148,13 @@ def joint_jacobian(chain: Chain, frames: Frames) -> np.ndarray:
     return tip_jacobian(frames, twists)
 
 
+def joint_column(chain: Chain, frames: Frames, joint: int) -> np.ndarray:
+    """Tip Jacobian (N, 6) of one joint's value: the column ``joint`` of :func:`joint_jacobian`."""
+    twists = np.zeros((frames.rotations.shape[0], 6, 1))
+    twists[2 * joint + 1, :, 0] = chain.axes[joint]
+    return tip_jacobian(frames, twists)[:, :, 0]
+
+
 def right_twists(
     factors: list[pin.SE3], local: list[tuple[int, int, np.ndarray]], n_params: int
 ) -> np.ndarray:

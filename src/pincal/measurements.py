@@ -27,7 +27,7 @@ import pinocchio as pin
 from .data import Dataset
 from .effects import Extension
 from .errors import DataError
-from .kinematics import Frames, forward, skew, tip_jacobian
+from .kinematics import Frames, forward, joint_column, skew, tip_jacobian
 from .models import Model
 
 MEASURES = ("position", "pose", "distance")
@@ -193,9 +193,7 @@ class Problem:
         """How each pose's measured point moves per unit of joint ``joint`` (N, 3), instrument frame."""
         x, reg, _ = self.split(theta)
         frames, _, pos = self.target_frames(theta)
-        axis = np.zeros((frames.rotations.shape[0], 6, 1))
-        axis[2 * joint + 1, :, 0] = self.model.chain(x[: self.model.n_params]).axes[joint]
-        jac = tip_jacobian(frames, axis)[:, :, 0]
+        jac = joint_column(self.model.chain(x[: self.model.n_params]), frames, joint)
         return (jac[:, :3] + np.cross(jac[:, 3:], pos - frames.tip_translation)) @ reg.rotation.T
 
     def residuals(self, theta: np.ndarray) -> np.ndarray:
@@ -220,9 +218,8 @@ class Problem:
             jt[:, :, :n_geo] = tip_jacobian(frames, self.model.twists(x[:n_geo]))
             if self.extension is not None:
                 joint = self.extension.index
-                axis = np.zeros((frames.rotations.shape[0], 6, 1))
-                axis[2 * joint + 1, :, 0] = self.model.chain(x[:n_geo]).axes[joint]
-                jt[:, :, n_geo : self.n_model] = tip_jacobian(frames, axis) * self.regressors[:, None, :]
+                column = joint_column(self.model.chain(x[:n_geo]), frames, joint)
+                jt[:, :, n_geo : self.n_model] = column[:, :, None] * self.regressors[:, None, :]
             lever = pos - frames.tip_translation
             jt[:, :3, : self.n_model] += np.cross(jt[:, 3:, : self.n_model], lever[:, :, None], axis=1)
             k = self.n_model + m.n_instrument

@@ -74,6 +74,11 @@ def euler_zyx(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
     )
 
 
+def _differences(rotations: np.ndarray, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Eq. 6: the stacked ``R_i - R_{i+1}`` (3(n-1), 3) and ``p_{i+1} - p_i`` (3(n-1),)."""
+    return (rotations[:-1] - rotations[1:]).reshape(-1, 3), (positions[1:] - positions[:-1]).reshape(-1)
+
+
 def tcp_position(rotations: np.ndarray, positions: np.ndarray) -> tuple[np.ndarray, float, float]:
     """TCP by eqs. 6-9 and δ by eq. 10.
 
@@ -93,8 +98,7 @@ def tcp_position(rotations: np.ndarray, positions: np.ndarray) -> tuple[np.ndarr
             f"{n} TCP pose(s): with 2 poses the coefficient matrix R1 - R2 is always singular "
             "(Xiong 2012, eq. 6); teach at least 3 poses touching the point from different orientations"
         )
-    lhs = (rotations[:-1] - rotations[1:]).reshape(-1, 3)
-    rhs = (positions[1:] - positions[:-1]).reshape(-1)
+    lhs, rhs = _differences(rotations, positions)
     sv = np.linalg.svd(lhs, compute_uv=False)
     cond = float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf")
     if cond > 1e6:
@@ -214,7 +218,7 @@ def calibrate_tool(
         tcp=tcp,
         rotation=rot,
         fit_error=delta,
-        tcp_std=_tcp_std(rotations[:n_tcp], points - point),
+        tcp_std=_tcp_std(rotations[:n_tcp], positions[:n_tcp], points - point),
         point=point,
         residuals=residuals,
         suspects=suspects,
@@ -223,7 +227,7 @@ def calibrate_tool(
     )
 
 
-def _tcp_std(rotations: np.ndarray, scatter: np.ndarray) -> np.ndarray:
+def _tcp_std(rotations: np.ndarray, positions: np.ndarray, scatter: np.ndarray) -> np.ndarray:
     """Standard deviation of the eq. 7 estimate, each TCP point ``R_i t + p_i`` carrying independent
     noise of variance σ² per axis (estimated from ``scatter`` with 3n - 6 degrees of freedom).
 
@@ -231,7 +235,7 @@ def _tcp_std(rotations: np.ndarray, scatter: np.ndarray) -> np.ndarray:
     covariance is ``σ² A⁺ D Dᵀ A⁺ᵀ``.
     """
     n = len(rotations)
-    pinv = np.linalg.pinv((rotations[:-1] - rotations[1:]).reshape(-1, 3))
+    pinv = np.linalg.pinv(_differences(rotations, positions)[0])
     diff = np.zeros((n - 1, n))
     diff[np.arange(n - 1), np.arange(n - 1)] = -1.0
     diff[np.arange(n - 1), np.arange(1, n)] = 1.0
@@ -257,8 +261,7 @@ def _leave_one_out(
     scatter = np.empty(n)
     for i in range(n):
         keep = np.arange(n) != i
-        lhs = (rotations[keep][:-1] - rotations[keep][1:]).reshape(-1, 3)
-        rhs = (positions[keep][1:] - positions[keep][:-1]).reshape(-1)
+        lhs, rhs = _differences(rotations[keep], positions[keep])
         t = np.linalg.lstsq(lhs, rhs, rcond=None)[0]
         kept = rotations[keep] @ t + positions[keep]
         common = kept.mean(axis=0)
