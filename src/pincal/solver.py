@@ -8,6 +8,7 @@ same; standard deviations are ``σ² (JᵀJ)⁻¹`` on that set with ``σ²`` fr
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -200,6 +201,7 @@ def calibrate(
     f_scale: float = 1e-4,
     rcond: float = RCOND,
     extension: Extension | str | None = None,
+    params: Sequence[str] | None = None,
 ) -> Calibration:
     """Identify a kinematic model from measurements.
 
@@ -219,6 +221,9 @@ def calibrate(
         rcond: relative singular-value threshold of the identifiability rank.
         extension: a non-geometric effect identified with the geometry (an
             :class:`~pincal.effects.Extension` or ``EFFECT:JOINT``).
+        params: names of the model parameters to fit (default: every one the data identifies);
+            the others stay at their nominal value. The extension, registration and tool are fitted
+            whatever this says.
 
     Raises:
         DataError: unknown measure or loss, data that does not fit the robot.
@@ -268,11 +273,21 @@ def calibrate(
         theta, _ = _solve(problem, theta, meas_free, scale, "linear", f_scale)
     nominal_theta = theta.copy()
 
-    candidates = np.array([name not in mdl.held for name in problem.names])
+    held = dict(mdl.held)
+    if params is not None:
+        unknown = sorted(set(params) - set(mdl.names))
+        if unknown:
+            raise DataError(
+                f"unknown parameters {', '.join(unknown)}: "
+                f"the {mdl.kind} model's are named like {', '.join(mdl.names[:3])}"
+            )
+        chosen = set(params)
+        held.update({name: "not selected" for name in mdl.names if name not in chosen and name not in held})
+    candidates = np.array([name not in held for name in problem.names])
     preference = np.ones(problem.n_params)
     preference[:n_model] = 1.0 + 0.05 * np.linspace(0.0, 1.0, n_model)
     preference[n_model:] = 2.0
-    ident = analyse(problem.jacobian(theta), problem.names, scale, candidates, preference, mdl.held, rcond)
+    ident = analyse(problem.jacobian(theta), problem.names, scale, candidates, preference, held, rcond)
     n_res = len(problem.residuals(theta))
     if n_res <= ident.n_identifiable:
         per_pose = max(1, n_res // max(1, len(data)))
