@@ -158,9 +158,7 @@ def test_calibrate_holdout_writes_contract_report(
 ) -> None:
     """``calibrate ur5 data.csv --units mm --holdout 0.3 --report r.json``: the full report."""
     before = files.all.read_bytes()
-    report = _calibrate(
-        capsys, tmp_path / "r.json", "ur5", files.all, "--units", "mm", "--holdout", "0.3"
-    )
+    report = _calibrate(capsys, tmp_path / "r.json", "ur5", files.all, "--units", "mm", "--holdout", "0.3")
     _check_contract(report)
     assert report["robot"] == "ur5" and report["tip"] == "tool0"
     assert report["model"] == "placements" and report["measure"] == "position"
@@ -211,9 +209,7 @@ def test_calibrate_with_test_file(
     _assert_calibrated(report)
 
 
-def test_calibrate_degrees(
-    capsys: pytest.CaptureFixture[str], ur5: pincal.Robot, tmp_path: Path
-) -> None:
+def test_calibrate_degrees(capsys: pytest.CaptureFixture[str], ur5: pincal.Robot, tmp_path: Path) -> None:
     """A CSV in degrees read with ``--degrees`` calibrates as the same data in radians."""
     _, fit, test = pincal.simulate(ur5, N_FIT, N_TEST, seed=0)
     data = _concat(fit, test)
@@ -228,9 +224,7 @@ def test_calibrate_degrees(
         lines.append(",".join(repr(float(v)) for v in (*q, *p)))
     degrees.write_text("\n".join(lines) + "\n", encoding="utf-8")
 
-    in_degrees = _calibrate(
-        capsys, tmp_path / "deg.json", "ur5", degrees, "--degrees", "--holdout", "0.3"
-    )
+    in_degrees = _calibrate(capsys, tmp_path / "deg.json", "ur5", degrees, "--degrees", "--holdout", "0.3")
     in_radians = _calibrate(capsys, tmp_path / "rad.json", "ur5", radians, "--holdout", "0.3")
     _check_contract(in_degrees)
     _assert_calibrated(in_degrees)
@@ -300,7 +294,7 @@ def test_calibrate_tool_point(
 def test_calibrate_locks_joint_without_column(
     capsys: pytest.CaptureFixture[str], ur5: pincal.Robot, tmp_path: Path
 ) -> None:
-    """A chain joint with no column is locked at its neutral value (contracts.md), not an error.
+    """A chain joint with no column is an error (issue 6) unless ``--lock`` holds it at neutral.
 
     The data is measured with ``wrist_3_joint`` at 0 and its column left out.
     """
@@ -313,8 +307,23 @@ def test_calibrate_locks_joint_without_column(
     rows = [",".join(repr(float(v)) for v in (*qi[:-1], *p)) for qi, p in zip(q, data.points)]
     path.write_text("\n".join([header, *rows]) + "\n", encoding="utf-8")
 
+    refused = _single_error_line(
+        _run(capsys, "calibrate", "ur5", path, "--holdout", "0.3", "--report", tmp_path / "r.json")
+    )
+    assert "wrist_3_joint" in refused and "--lock wrist_3_joint" in refused
+    assert not (tmp_path / "r.json").exists()
+
     run = _run(
-        capsys, "calibrate", "ur5", path, "--holdout", "0.3", "--report", tmp_path / "r.json"
+        capsys,
+        "calibrate",
+        "ur5",
+        path,
+        "--holdout",
+        "0.3",
+        "--report",
+        tmp_path / "r.json",
+        "--lock",
+        "wrist_3_joint",
     )
     assert run.code == 0, run.err
     assert "wrist_3_joint" in run.out  # says which joint it locked
@@ -400,9 +409,7 @@ def test_calibrate_unusable_input(
     assert not list(tmp_path.glob("*.tmp"))
 
 
-def test_usage_error_hint_names_a_real_command(
-    capsys: pytest.CaptureFixture[str], files: Files
-) -> None:
+def test_usage_error_hint_names_a_real_command(capsys: pytest.CaptureFixture[str], files: Files) -> None:
     """The ``--help`` hint of a usage error points at a command that exists."""
     line = _single_error_line(_run(capsys, "calibrate", "ur5", files.all, "--frobnicate"))
     hint = re.search(r"see '([^']*)'", line)

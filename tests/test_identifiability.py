@@ -150,23 +150,23 @@ def test_axial_translation_absorbed_by_next_joint(experiment, name: str, expecte
             allowed.add("instrument")
         assert any(n.split(".")[0] in allowed for n in named), (axial, named, allowed)
         assert all(
-            n.split(".")[0] in ("instrument", "tool") or joints.index(n.split(".")[0]) > j
-            for n in named
+            n.split(".")[0] in ("instrument", "tool") or joints.index(n.split(".")[0]) > j for n in named
         ), (axial, named)
 
 
 # --- offsets: a joint that never moves -----------------------------------------------------------
 
 
-def offsets_calibration(robot, truth, fit, frozen: int | None) -> pincal.Calibration:
-    """``offsets`` on the fitted poses with joint ``frozen`` held at one value (measured again)."""
+def offsets_calibration(robot, truth, fit, frozen: int | None, partial: bool = True) -> pincal.Calibration:
+    """``offsets`` on the fitted poses with joint ``frozen`` held at one value (measured again);
+    ``partial``: fit what the data identifies rather than refuse it."""
     q = fit.q.copy()
     if frozen is not None:
         q[:, frozen] = 0.3
     data = truth.measure(q) if frozen is not None else fit
     if frozen is not None:
         assert np.ptp(data.q[:, frozen]) == 0.0
-    return pincal.calibrate(robot, data, "offsets", measure="position")
+    return pincal.calibrate(robot, data, "offsets", measure="position", partial=partial)
 
 
 def identifiable(cal: pincal.Calibration, name: str) -> bool:
@@ -180,9 +180,7 @@ def test_offsets_all_joints_moving(experiment) -> None:
     cal = offsets_calibration(robot, truth, fit, None)
     names = [f"{j}.offset" for j in robot.joint_names]
     assert [identifiable(cal, n) for n in names] == [False, True, True, True, True, False]
-    assert any(
-        a.startswith("instrument.") for a in absorbers(cal.identifiability.reasons[names[0]])
-    )
+    assert any(a.startswith("instrument.") for a in absorbers(cal.identifiability.reasons[names[0]]))
     assert all(a.startswith("tool.") for a in absorbers(cal.identifiability.reasons[names[-1]]))
 
 
@@ -199,9 +197,21 @@ def test_offset_of_never_moving_end_joint_is_not_identifiable(experiment, frozen
     neighbour = 1 if frozen == 0 else frozen - 1
     assert not identifiable(cal, names[neighbour])
     owner = "instrument." if frozen == 0 else "tool."
-    assert any(
-        a.startswith(owner) for a in absorbers(cal.identifiability.reasons[names[neighbour]])
-    )
+    assert any(a.startswith(owner) for a in absorbers(cal.identifiability.reasons[names[neighbour]]))
+
+
+@pytest.mark.parametrize("frozen", [0, 5])
+def test_never_moving_end_joint_is_refused_without_partial(experiment, frozen: int) -> None:
+    """Without ``partial``, data that loses what varied poses identify is an error that names the
+    lost parameters and the joint that never moves."""
+    robot, truth, fit = experiment("ur5")
+    with pytest.raises(pincal.IdentifiabilityError) as err:
+        offsets_calibration(robot, truth, fit, frozen, partial=False)
+    message = str(err.value)
+    assert f"joint(s) {robot.joint_names[frozen]} never move" in message
+    neighbour = 1 if frozen == 0 else frozen - 1
+    assert f"{robot.joint_names[neighbour]}.offset" in message
+    assert "--partial" in message
 
 
 @pytest.mark.parametrize("frozen", [1, 2, 3, 4])
@@ -233,12 +243,8 @@ def test_mdh_holds_beta_exactly_where_axes_are_not_parallel(get_robot, name: str
     model = pincal.make_model("mdh", robot)
     w = pincal.nominal_twists(robot).twists[:, 3:]
     for j, joint in enumerate(robot.joint_names):
-        angle = (
-            0.0 if j == 0 else float(np.arcsin(min(1.0, np.linalg.norm(np.cross(w[j - 1], w[j])))))
-        )
-        assert abs(angle - PARALLEL_TOL) > 1e-3, (
-            "an axis pair at the threshold makes this test moot"
-        )
+        angle = 0.0 if j == 0 else float(np.arcsin(min(1.0, np.linalg.norm(np.cross(w[j - 1], w[j])))))
+        assert abs(angle - PARALLEL_TOL) > 1e-3, "an axis pair at the threshold makes this test moot"
         assert (f"{joint}.beta" in model.held) == (angle > PARALLEL_TOL), (joint, angle)
 
 

@@ -40,9 +40,7 @@ NOISE = 0.03e-3
 FRAME = "smr"
 ROUND_TRIP_ROBOTS = ("ur5", "panda", "z1", "mrres5")
 DIFF_ROBOTS = ("ur5", "panda")
-_PARSER = etree.XMLParser(
-    resolve_entities=False, no_network=True, load_dtd=False, remove_comments=False
-)
+_PARSER = etree.XMLParser(resolve_entities=False, no_network=True, load_dtd=False, remove_comments=False)
 
 GetRobot = Callable[[str], pincal.Robot]
 GetCalibration = Callable[[str, str], pincal.Calibration]
@@ -285,9 +283,7 @@ def test_only_chain_origins_change(
     assert [j.get("name") for j in joints_in] == [j.get("name") for j in joints_out]
     for joint_in, joint_out in zip(joints_in, joints_out):
         axis_in, axis_out = joint_in.findall("axis"), joint_out.findall("axis")
-        assert [list(a.attrib.items()) for a in axis_in] == [
-            list(a.attrib.items()) for a in axis_out
-        ]
+        assert [list(a.attrib.items()) for a in axis_in] == [list(a.attrib.items()) for a in axis_out]
 
 
 @pytest.mark.parametrize("name", DIFF_ROBOTS)
@@ -368,7 +364,7 @@ def test_loads_in_pinocchio_and_yourdfpy(
 def test_cli_output_is_byte_identical(
     get_robot: GetRobot, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """``pincal calibrate ur5 data.csv -o FILE`` twice writes the same bytes, with a sidecar.
+    """``pincal calibrate ur5 data.csv -o FILE`` twice (``--force``) writes the same bytes, with a sidecar.
 
     Args:
         get_robot: the session robot cache.
@@ -384,7 +380,12 @@ def test_cli_output_is_byte_identical(
         target = tmp_path / f"{stem}.urdf"
         sidecar = tmp_path / f"{stem}.calibration.json"
         previous = (target.read_bytes(), sidecar.read_bytes()) if target.exists() else None
-        code, out, err = _run(capsys, "calibrate", "ur5", data, "-o", target)
+        if previous is not None:  # an existing output is replaced only with --force
+            code, _, err = _run(capsys, "calibrate", "ur5", data, "-o", target)
+            assert code == 2 and "--force" in err
+            assert (target.read_bytes(), sidecar.read_bytes()) == previous
+        force = ["--force"] if previous is not None else []
+        code, out, err = _run(capsys, "calibrate", "ur5", data, "-o", target, *force)
         assert code == 0, err
         assert err == ""
         assert "corrected URDF written to" in out
@@ -412,9 +413,7 @@ def test_cli_output_is_byte_identical(
 
 @pytest.mark.parametrize("model", ["placements", "poe", "mdh"])
 @pytest.mark.parametrize("name", DIFF_ROBOTS)
-def test_files_predict_held_out_points(
-    get_robot: GetRobot, tmp_path: Path, name: str, model: str
-) -> None:
+def test_files_predict_held_out_points(get_robot: GetRobot, tmp_path: Path, name: str, model: str) -> None:
     """URDF (with ``--add-frame``) and sidecar registration predict test points at the noise floor.
 
     Only the files are used for the prediction: the chain to the added frame from the URDF,
@@ -440,9 +439,7 @@ def test_files_predict_held_out_points(
     (joint,) = etree.parse(str(path), _PARSER).getroot().findall(f"joint[@name='{FRAME}_joint']")
     assert np.array_equal(_vector(joint.find("origin").get("rpy")), np.zeros(3))  # position data
 
-    predicted = np.array(
-        [registration.act(exported.frame_placement(q).translation) for q in test.q]
-    )
+    predicted = np.array([registration.act(exported.frame_placement(q).translation) for q in test.q])
     rms = float(np.sqrt(np.mean(np.sum((predicted - test.points) ** 2, axis=1))))
     assert rms <= 1.2 * NOISE * np.sqrt(3), f"held-out RMS {rms * 1e3:.4f} mm"
 

@@ -9,6 +9,7 @@ Load a robot, read or simulate measurements, calibrate, read the report::
     print(pincal.summary(cal))
 """
 
+from .checks import check_columns, check_limits, check_scale
 from .crossval import CrossValidation, cross_validate
 from .data import Dataset, read_csv, write_csv
 from .demo import gao2013_data
@@ -21,6 +22,7 @@ from .kinematics import Chain, forward, joint_jacobian, tip_jacobian
 from .mdh import MdhModel, MdhTable, mdh_table
 from .measurements import Measurement, Problem, all_pairs, gao_pairs
 from .models import MODELS, Model, OffsetsModel, PlacementsModel, PoeModel, make_model
+from .outliers import find_outliers, pose_scores
 from .plots import plot_diagnosis
 from .report import report_dict, report_json, summary
 from .robots import BUNDLED, Robot, load_robot
@@ -65,11 +67,15 @@ __all__ = [
     "all_pairs",
     "calibrate",
     "calibrate_tool",
+    "check_columns",
+    "check_limits",
+    "check_scale",
     "chain_twists",
     "corrected_urdf",
     "cross_validate",
     "distance_errors",
     "evaluate",
+    "find_outliers",
     "forward",
     "gao2013_data",
     "gao_k",
@@ -83,6 +89,7 @@ __all__ = [
     "nominal_twists",
     "plot_diagnosis",
     "poe_forward",
+    "pose_scores",
     "pose_errors",
     "random_truth",
     "read_csv",

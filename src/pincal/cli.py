@@ -15,12 +15,14 @@ from typing import Any, NoReturn
 import numpy as np
 import pinocchio as pin
 
+from .checks import check_columns, check_limits, check_scale
 from .data import UNITS, Dataset, atomic_write, csv_columns, read_csv
 from .effects import Extension, Payload
 from .errors import DataError, PincalError
 from .measurements import MEASURES
 from .models import MODELS
-from .robots import BUNDLED, Robot, load_robot
+from .outliers import THRESHOLD
+from .robots import BUNDLED, Robot, bundled_urdf, load_robot
 from .solver import LOSSES, calibrate
 from .tool import ORIENTATIONS, calibrate_tool, read_flange_poses
 from .urdf_writer import check_frame_name, check_output, write_corrected_urdf
@@ -65,6 +67,7 @@ def _build_parser() -> argparse.ArgumentParser:
     cal.add_argument(
         "--pairs", choices=["all", "gao"], default="all", help="pose pairs for --measure distance"
     )
+    _add_force(cal)
 
     diag = sub.add_parser("diagnose", help="name what the rigid model gets wrong, and the gain")
     _add_data_options(diag)
@@ -72,6 +75,7 @@ def _build_parser() -> argparse.ArgumentParser:
     diag.add_argument("--plots", type=Path, metavar="DIR", help="write a PNG of the named cause here")
     diag.add_argument("--folds", type=int, default=5, help="folds of the cross-validation")
     diag.add_argument("--seed", type=int, default=0, help="seed of the folds")
+    _add_force(diag)
 
     demo = sub.add_parser("demo", help="calibrate bundled data and print before/after tables")
     demo.add_argument("--seed", type=int, default=0)
@@ -87,11 +91,23 @@ def _build_parser() -> argparse.ArgumentParser:
     tcp.add_argument("--robot", help="compute flange poses from joint columns with this robot (URDF or name)")
     tcp.add_argument("--tip", help="with --robot: the flange frame (default: the robot's tip)")
     tcp.add_argument("--degrees", action="store_true", help="with --robot: joint values in degrees")
+    _add_force(tcp)
 
     tw = sub.add_parser("twists", help="print the chain's nominal joint twists, checked against Pinocchio")
     tw.add_argument("robot")
     tw.add_argument("--tip")
     return parser
+
+
+def _urdf_path(robot: str | None) -> Path | None:
+    """The URDF file a ROBOT argument names (bundled robots included)."""
+    if robot is None:
+        return None
+    return bundled_urdf(robot) if robot in BUNDLED else Path(robot)
+
+
+def _add_force(cmd: argparse.ArgumentParser) -> None:
+    cmd.add_argument("--force", action="store_true", help="replace output files that exist already")
 
 
 def _add_data_options(cmd: argparse.ArgumentParser) -> None:
@@ -118,6 +134,20 @@ def _add_data_options(cmd: argparse.ArgumentParser) -> None:
     )
     cmd.add_argument("--loss", choices=LOSSES, default="linear", help="robust loss for outliers")
     cmd.add_argument(
+        "--outliers",
+        type=float,
+        default=THRESHOLD,
+        metavar="SIGMAS",
+        help=f"leave out poses whose residual is this many robust std above the others' "
+        f"(default {THRESHOLD:g}; 0 keeps every pose)",
+    )
+    cmd.add_argument(
+        "--lock", type=_names, default=(), metavar="JOINT,...", help="chain joints to hold at neutral"
+    )
+    cmd.add_argument(
+        "--partial", action="store_true", help="fit only what the data identifies when it is not all"
+    )
+    cmd.add_argument(
         "--rotation-weight",
         type=float,
         default=0.1,
@@ -125,21 +155,54 @@ def _add_data_options(cmd: argparse.ArgumentParser) -> None:
     )
 
 
+def _names(text: str) -> tuple[str, ...]:
+    return tuple(n.strip() for n in text.split(",") if n.strip())
+
+
 def _robot(args: argparse.Namespace) -> Robot:
-    """The chain, with joints that have no column in the data locked (said on stdout)."""
+    """The chain; every chain joint needs a column in the data unless ``--lock`` holds it."""
     chain = load_robot(args.robot, tip=args.tip)
-    columns = set(csv_columns(args.data))
-    present = [j for j in chain.joint_names if j in columns]
-    if not present:
+    unknown = [j for j in args.lock if j not in chain.joint_names]
+    if unknown:
         raise DataError(
-            f"{args.data} has no column for any joint between the base and {chain.tip} "
-            f"({', '.join(chain.joint_names)}): name the columns as the URDF's joints"
+            f"--lock {','.join(unknown)}: not joints between the base and {chain.tip} "
+            f"({', '.join(chain.joint_names)})"
         )
-    locked = [j for j in chain.joint_names if j not in columns]
-    if not locked:
+    check_columns(csv_columns(args.data), chain, args.lock)
+    if not args.lock:
         return chain
-    print(f"locked at their neutral value (no column in the data): {', '.join(locked)}")
-    return load_robot(args.robot, tip=args.tip, joints=present)
+    if len(args.lock) == chain.n_joints:
+        raise DataError("--lock names every joint of the chain: nothing would move")
+    print(f"locked at their neutral value: {', '.join(args.lock)}")
+    return load_robot(args.robot, tip=args.tip, joints=[j for j in chain.joint_names if j not in args.lock])
+
+
+def _check_outputs(args: argparse.Namespace, outputs: Sequence[Path | None], inputs: dict[str, Any]) -> None:
+    """Refuse outputs that are inputs, repeat, sit in no folder, or exist (without ``--force``).
+
+    Args:
+        args: the parsed command line (``--force``).
+        outputs: the files the command will write (None: not asked for).
+        inputs: what each input is ("data file", ...) -> its path or ROBOT argument (or None).
+    """
+    sources = {label: Path(str(p)) for label, p in inputs.items() if p is not None}
+    sources = {label: p for label, p in sources.items() if p.is_file()}
+    seen: list[Path] = []
+    for out in outputs:
+        if out is None:
+            continue
+        if out.is_dir():
+            raise DataError(f"{out} is a folder: give a file name for the output")
+        for label, src in sources.items():
+            if out.exists() and out.samefile(src):
+                raise DataError(f"{out} is the {label}: write the output to another file")
+        if out.resolve() in seen:
+            raise DataError(f"{out} is named for two outputs: give each its own file")
+        seen.append(out.resolve())
+        if not out.parent.resolve().is_dir():
+            raise DataError(f"the output folder {out.parent} does not exist: create it first")
+        if out.exists() and not args.force:
+            raise DataError(f"{out} exists already: pass --force to replace it, or choose another name")
 
 
 def _options(args: argparse.Namespace) -> dict[str, Any]:
@@ -149,6 +212,7 @@ def _options(args: argparse.Namespace) -> dict[str, Any]:
         "tool": None if args.tool_point is None else args.tool_point * UNITS[args.units],
         "rotation_weight": args.rotation_weight,
         "loss": args.loss,
+        "partial": args.partial,
     }
 
 
@@ -158,8 +222,15 @@ def _diagnose(args: argparse.Namespace) -> int:
 
     if args.plots is not None and not args.plots.is_dir():
         raise DataError(f"--plots {args.plots}: the folder does not exist, create it first")
+    _check_outputs(args, [args.json], {"data file": args.data, "input URDF": _urdf_path(args.robot)})
     robot = _robot(args)
     data = _load_data(args.data, robot, args)
+    if args.outliers:
+        screened = calibrate(robot, data, args.model, args.measure, outliers=args.outliers, **_options(args))
+        if screened.excluded:
+            rows = [row for row, _ in screened.excluded]
+            data = data.subset(np.flatnonzero(~np.isin(data.row_numbers, rows)))
+            print(f"outliers left out (residual far outside the others'): rows {', '.join(map(str, rows))}")
 
     def progress(done: int, total: int, label: str) -> None:
         print(f"\r  candidates {done}/{total} ({label})".ljust(72), end="", file=sys.stderr, flush=True)
@@ -184,7 +255,9 @@ def _diagnose(args: argparse.Namespace) -> int:
         print(f"  {cand.extension.label:42s} CV RMS {cand.cv_rms_mm:.4f} mm  F-test p = {cand.p_value:.2g}")
     print(result.summary())
     if args.plots is not None and result.cause is not None and result.baseline.measurement.kind != "distance":
-        path = plot_diagnosis(result, data, args.plots / f"diagnose_{result.cause.extension.effect}.png")
+        plot = args.plots / f"diagnose_{result.cause.extension.effect}.png"
+        _check_outputs(args, [plot], {"data file": args.data, "input URDF": _urdf_path(args.robot)})
+        path = plot_diagnosis(result, data, plot)
         print(f"plot written to {path}")
     if args.json is not None:
         atomic_write(args.json, json.dumps(result.to_dict(), indent=2) + "\n")
@@ -203,6 +276,7 @@ def _mapping(text: str) -> dict[str, str]:
 
 
 def _tcp(args: argparse.Namespace) -> int:
+    _check_outputs(args, [args.json], {"poses file": args.poses, "input URDF": _urdf_path(args.robot)})
     robot = load_robot(args.robot, tip=args.tip) if args.robot else None
     rotations, positions = read_flange_poses(args.poses, args.units, args.columns, robot, args.degrees)
     tool = calibrate_tool(rotations, positions, args.orientation, scale=1.0 / UNITS[args.units])
@@ -239,9 +313,13 @@ def _tcp(args: argparse.Namespace) -> int:
 
 
 def _load_data(path: Path, robot: Robot, args: argparse.Namespace) -> Dataset:
-    return read_csv(
+    """Read a measurement CSV and check its joint values and units against the robot."""
+    data = read_csv(
         path, robot.joint_names, degrees=args.degrees, units=args.units, prismatic=robot.prismatic
     )
+    check_limits(robot, data, args.degrees)
+    check_scale(robot, data, args.units)
+    return data
 
 
 def _calibrate(args: argparse.Namespace) -> int:
@@ -252,6 +330,12 @@ def _calibrate(args: argparse.Namespace) -> int:
     check_frame_name(args.add_frame)
     if args.test is not None and args.holdout is not None:
         raise DataError("give either --test or --holdout, not both")
+    side = None if args.output is None else args.output.with_name(args.output.stem + ".calibration.json")
+    _check_outputs(
+        args,
+        [args.output, side, args.report],
+        {"data file": args.data, "test data file": args.test, "input URDF": _urdf_path(args.robot)},
+    )
     robot = _robot(args)
     if args.output is not None:
         check_output(args.output, robot)
@@ -268,6 +352,7 @@ def _calibrate(args: argparse.Namespace) -> int:
         test=test,
         pairs=args.pairs,
         extension=extension,
+        outliers=args.outliers or None,
         **_options(args),
     )
     print(summary(cal))

@@ -92,13 +92,14 @@ def cross_validate(
         measure: the measurement (default as :func:`pincal.calibrate`).
         folds: number of folds (``len(data)`` for leave-one-out).
         seed: seed of the partition.
-        **options: passed to :func:`pincal.calibrate`.
+        **options: passed to :func:`pincal.calibrate`; each fold fits what its poses identify
+            (``partial=True``: a fold may lack the variety of the whole).
     """
     pooled: list[list[np.ndarray]] = [[], [], []]
     cals = []
     for held in fold_indices(len(data), folds, seed):
         fit = np.setdiff1d(np.arange(len(data)), held)
-        cal = calibrate(robot, data.subset(fit), model, measure, **options)
+        cal = calibrate(robot, data.subset(fit), model, measure, **{**options, "partial": True})
         cals.append(cal)
         for store, errs in zip(pooled, _held_out_errors(cal, data, held)):
             store.append(errs)

@@ -192,12 +192,17 @@ def diagnose(
     """
     options = {k: v for k, v in options.items() if k != "extension"}
     pool = candidates(robot, payload) if effects is None else effects
+    base = calibrate(robot, data, model, measure, **options)  # first: says if the data falls short
     base_cv = cross_validate(robot, data, model, measure, folds, seed, **options)
-    base = calibrate(robot, data, model, measure, **options)
+    options["partial"] = True  # an effect the data cannot tell from the geometry is no candidate
     judged = []
     for k, ext in enumerate(pool):
-        cv = cross_validate(robot, data, model, measure, folds, seed, extension=ext, **options)
         full = calibrate(robot, data, model, measure, extension=ext, **options)
+        if not full.identifiability.identifiable[
+            full.model.n_params : full.model.n_params + ext.n_params
+        ].all():
+            continue
+        cv = cross_validate(robot, data, model, measure, folds, seed, extension=ext, **options)
         judged.append(Candidate(ext, cv.after.rms_mm, _f_test(base, full, data), full))
         if progress is not None:
             progress(k + 1, len(pool), ext.label)

@@ -99,3 +99,48 @@ def analyse(
         top = [names[keep[k]] for k in np.argsort(-weight)[:3] if weight[k] > 1e-3 * np.linalg.norm(col)]
         reasons[names[idx]] = "absorbed by " + ", ".join(top) if top else "not identifiable from these poses"
     return Identifiability(mask, sv, cond, reasons)
+
+
+def lost_parameters(
+    jacobian: np.ndarray,
+    reference: np.ndarray,
+    names: tuple[str, ...],
+    scale: np.ndarray,
+    candidates: np.ndarray,
+    rcond: float = RCOND,
+) -> tuple[int, list[str]]:
+    """Parameters that varied poses identify but these poses do not.
+
+    Args:
+        jacobian: (m, P) identification Jacobian on the data.
+        reference: (m', P) the same on varied poses (random within the joint limits).
+        names: the P parameter names.
+        scale: (P,) natural size of each parameter.
+        candidates: (P,) mask of the parameters that may be estimated.
+        rcond: relative singular-value threshold of the rank.
+
+    Returns:
+        The number of parameters the varied poses identify, and the names that carry the
+        directions the data cannot see (empty when the data's rank is the varied poses' rank),
+        largest share first.
+    """
+    cand = np.flatnonzero(candidates)
+    ref = reference[:, cand] * scale[cand]
+    if ref.shape[0] > ref.shape[1]:
+        ref = np.linalg.qr(ref, mode="r")
+    sv_ref = np.linalg.svd(ref, compute_uv=False)
+    rank_ref = int(np.sum(sv_ref > rcond * sv_ref[0])) if sv_ref.size else 0
+    _, piv = scipy.linalg.qr(ref, mode="r", pivoting=True)
+    keep = np.sort(piv[:rank_ref])  # a set the varied poses identify
+    js = jacobian[:, cand[keep]] * scale[cand[keep]]
+    if js.shape[0] > js.shape[1]:
+        js = np.linalg.qr(js, mode="r")
+    _, sv, vt = np.linalg.svd(js, full_matrices=True)
+    sv_full = np.zeros(len(keep))
+    sv_full[: len(sv)] = sv
+    blind = vt[sv_full <= rcond * max(float(sv_full[0]), 1e-300)]
+    if blind.size == 0:
+        return rank_ref, []
+    share = np.sqrt(np.sum(blind**2, axis=0))
+    order = np.argsort(-share)
+    return rank_ref, [names[cand[keep[k]]] for k in order if share[k] > 0.2 * share[order[0]]]

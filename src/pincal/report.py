@@ -90,6 +90,7 @@ def report_dict(cal: Calibration) -> dict[str, Any]:
         "train": pair(cal.train_before, cal.train_after, cal.train_urdf),
         "test": pair(cal.test_before, cal.test_after, cal.test_urdf),
         "solver": {"jacobian_evaluations": cal.n_evaluations, "message": cal.message},
+        "excluded_poses": [{"row": row, "residual_mm": size} for row, size in cal.excluded],
         "parameters": parameter_rows(cal),
         **extra,
     }
@@ -139,4 +140,7 @@ def summary(cal: Calibration) -> str:
     if cal.test_after is not None:
         lines.append(_row("held out", cal.test_urdf, cal.test_before, cal.test_after))
     lines.append("  (before: nominal kinematics, registration and tool fitted; URDF as is: nominal tool)")
+    if cal.excluded:
+        rows = ", ".join(f"row {row} ({size:.3f} mm)" for row, size in cal.excluded)
+        lines.append(f"outliers left out of the fit (residual far outside the others'): {rows}")
     return "\n".join(lines)

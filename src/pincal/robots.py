@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import importlib.metadata
 import math
+import re
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from functools import cached_property
@@ -71,6 +72,7 @@ class Robot:
         prismatic: for each chain joint, True when it is prismatic (its value is in metres).
         lower: lower joint limits [rad or m] (-inf for continuous joints).
         upper: upper joint limits [rad or m] (+inf for continuous joints).
+        urdf_joints: every joint name of the URDF (including those locked or off the chain).
     """
 
     name: str
@@ -82,6 +84,7 @@ class Robot:
     prismatic: tuple[bool, ...]
     lower: np.ndarray
     upper: np.ndarray
+    urdf_joints: tuple[str, ...] = ()
 
     @property
     def n_joints(self) -> int:
@@ -152,6 +155,42 @@ class Robot:
         return lo + span * (margin + (1 - 2 * margin) * rng.random((n, self.n_joints)))
 
 
+_DOCTYPE = re.compile(r"<!DOCTYPE", re.IGNORECASE)
+_DECLARATION = re.compile(r"<!(ENTITY|ELEMENT|ATTLIST)|\b(SYSTEM|PUBLIC)\b", re.IGNORECASE)
+MAX_URDF_BYTES = 50_000_000  # [bytes] far above any robot description
+
+
+def read_urdf_text(path: Path) -> str:
+    """The text of a URDF, refused if it declares entities or an external DTD.
+
+    Kinematic calibration reads only the URDF itself: meshes (``package://`` or relative paths)
+    are never opened, and a DOCTYPE that could make an XML parser read a local file, the
+    network, or expand entities (``<!ENTITY``, ``SYSTEM``, ``PUBLIC``) is refused before any
+    parser sees the text.
+
+    Raises:
+        RobotError: unreadable file, not UTF-8, too large, or a DOCTYPE with declarations.
+    """
+    try:
+        if path.stat().st_size > MAX_URDF_BYTES:
+            raise RobotError(f"URDF {path} is larger than {MAX_URDF_BYTES // 1_000_000} MB: is it a URDF?")
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise RobotError(f"URDF file not found: {path}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise RobotError(f"cannot read URDF {path}: {exc}") from None
+    doctype = _DOCTYPE.search(text)
+    if doctype is not None:
+        start = doctype.start()
+        end = text.find("<robot", start)
+        if _DECLARATION.search(text, start, end if end > 0 else len(text)):
+            raise RobotError(
+                f"URDF {path} has a DOCTYPE that declares entities or an external DTD, which could "
+                "read other files: remove the <!DOCTYPE ...> block (a URDF needs none)"
+            )
+    return text
+
+
 def _find_frame(model: pin.Model, name: str) -> int:
     matches = [i for i, f in enumerate(model.frames) if f.name == name]
     if not matches:
@@ -193,9 +232,9 @@ def load_robot(
         if not path.is_file():
             raise RobotError(f"URDF file not found: {path}")
     try:
-        full = pin.buildModelFromUrdf(str(path))
+        full = pin.buildModelFromXML(read_urdf_text(path))
     except (RuntimeError, ValueError) as exc:
-        raise RobotError(f"cannot load URDF {path}: {exc}") from None
+        raise RobotError(f"cannot load URDF {path}: {' '.join(str(exc).split())}") from None
     if tip is None:
         tip = next(f.name for f in reversed(full.frames) if f.type == pin.FrameType.BODY)
     tip_id = _find_frame(full, tip)
@@ -254,4 +293,5 @@ def load_robot(
         prismatic=prismatic,
         lower=lower,
         upper=upper,
+        urdf_joints=tuple(full.names[1:]),
     )

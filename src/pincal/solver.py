@@ -19,10 +19,11 @@ from .data import Dataset
 from .effects import Extension
 from .errors import DataError, IdentifiabilityError
 from .evaluation import ErrorStats, evaluate
-from .identifiability import RCOND, Identifiability, analyse, parameter_scale
+from .identifiability import RCOND, Identifiability, analyse, lost_parameters, parameter_scale
 from .kinematics import Chain, forward
 from .measurements import ROTATION_WEIGHT, Measurement, Problem, gao_pairs, unpack
 from .models import Model, make_model
+from .outliers import find_outliers
 from .robots import Robot
 
 LOSSES = ("linear", "soft_l1", "huber", "cauchy")
@@ -51,6 +52,7 @@ class Calibration:
         n_poses: number of fitted poses.
         n_evaluations: Jacobian evaluations of the solver.
         message: the solver's termination message.
+        excluded: outlier poses left out of the fit, as (row number, residual [mm]) pairs.
     """
 
     model: Model
@@ -73,6 +75,7 @@ class Calibration:
     n_poses: int
     n_evaluations: int
     message: str
+    excluded: tuple[tuple[int, float], ...] = ()
 
     @property
     def robot(self) -> Robot:
@@ -112,6 +115,51 @@ class Calibration:
             q = q + self.extension.joint_error(q, self.effect_params)
         frames = forward(self.chain(), q)
         return frames.tip_rotation, frames.tip_translation
+
+
+def _check_rank(
+    problem: Problem, theta: np.ndarray, scale: np.ndarray, candidates: np.ndarray, rcond: float
+) -> int:
+    """How many parameters varied poses identify; an error if these poses identify fewer.
+
+    The reference is the same problem on random poses within the joint limits, measured exactly.
+
+    Raises:
+        IdentifiabilityError: naming the parameters the data cannot see, and the likely cause.
+    """
+    robot, data = problem.model.robot, problem.data
+    n_ref = max(60, 2 * problem.n_params)
+    q_ref = robot.random_configurations(n_ref, np.random.default_rng(0), margin=0.05)
+    quats = np.tile([1.0, 0.0, 0.0, 0.0], (n_ref, 1)) if data.has_orientation else None
+    blank = Dataset(data.joint_names, q_ref, np.zeros((n_ref, 3)), quats)
+    meas = replace(problem.measurement, pairs=None)
+    points, rotations = Problem(problem.model, meas, blank, problem.extension).predict(theta)
+    exact = replace(blank, points=points, quaternions=None if quats is None else _quaternions(rotations))
+    reference = Problem(problem.model, meas, exact, problem.extension)
+    rank, lost = lost_parameters(
+        problem.jacobian(theta), reference.jacobian(theta), problem.names, scale, candidates, rcond
+    )
+    if not lost or len(problem.residuals(theta)) <= rank:  # too few equations: the caller says so
+        return rank
+    span = np.ptp(data.q, axis=0)
+    still = [j for j, s, p in zip(robot.joint_names, span, robot.prismatic) if s < (1e-4 if p else 1e-3)]
+    if len(data) < 3 or len(still) == robot.n_joints:
+        cause = "all the poses are alike (no joint moves)"
+    elif still:
+        cause = f"joint(s) {', '.join(still)} never move"
+    else:
+        cause = f"{len(data)} poses do not vary the joints enough"
+    names = ", ".join(lost[:8]) + (f" and {len(lost) - 8} more" if len(lost) > 8 else "")
+    raise IdentifiabilityError(
+        f"the data cannot identify {names}, which varied poses would: {cause}. Measure poses that "
+        "move every joint over its range, fit fewer parameters (--model offsets), or pass "
+        "--partial to fit only what this data identifies"
+    )
+
+
+def _quaternions(rotations: np.ndarray) -> np.ndarray:
+    """(w, x, y, z) of rotation matrices (N, 3, 3)."""
+    return np.array([pin.Quaternion(r).coeffs()[[3, 0, 1, 2]] for r in rotations])
 
 
 def _kabsch(src: np.ndarray, dst: np.ndarray) -> pin.SE3:
@@ -202,6 +250,8 @@ def calibrate(
     rcond: float = RCOND,
     extension: Extension | str | None = None,
     params: Sequence[str] | None = None,
+    outliers: float | None = None,
+    partial: bool = False,
 ) -> Calibration:
     """Identify a kinematic model from measurements.
 
@@ -224,6 +274,10 @@ def calibrate(
         params: names of the model parameters to fit (default: every one the data identifies);
             the others stay at their nominal value. The extension, registration and tool are fitted
             whatever this says.
+        outliers: screen for outlier poses at this many robust standard deviations (see
+            :mod:`pincal.outliers`), leave them out and refit; ``None`` keeps every pose.
+        partial: fit what the data identifies even when varied poses would identify more
+            (otherwise that is an error naming the parameters the data cannot see).
 
     Raises:
         DataError: unknown measure or loss, data that does not fit the robot.
@@ -289,13 +343,47 @@ def calibrate(
     preference[n_model:] = 2.0
     ident = analyse(problem.jacobian(theta), problem.names, scale, candidates, preference, held, rcond)
     n_res = len(problem.residuals(theta))
-    if n_res <= ident.n_identifiable:
+    n_needed = ident.n_identifiable if partial else _check_rank(problem, theta, scale, candidates, rcond)
+    if n_res <= n_needed:
         per_pose = max(1, n_res // max(1, len(data)))
         raise IdentifiabilityError(
-            f"{len(data)} poses give {n_res} equations for {ident.n_identifiable} identifiable "
-            f"parameters: measure at least {ident.n_identifiable // per_pose + 2} poses"
+            f"{len(data)} poses give {n_res} equations for {n_needed} identifiable "
+            f"parameters: measure at least {n_needed // per_pose + 2} poses"
         )
     theta, result = _solve(problem, theta, ident.identifiable, scale, loss, f_scale)
+    if outliers:
+
+        def robust(start: np.ndarray, how: str, size: float) -> np.ndarray:
+            return _solve(problem, start, ident.identifiable, scale, how, size)[0]
+
+        bad, scores = find_outliers(problem, theta, robust, outliers)
+        if bad.size:
+            keep = np.setdiff1d(np.arange(len(data)), bad)
+            kept_pairs: str | np.ndarray = pairs
+            if not isinstance(pairs, str):
+                index = np.full(len(data), -1)
+                index[keep] = np.arange(len(keep))
+                mapped = index[np.asarray(pairs, dtype=int)]
+                kept_pairs = mapped[(mapped >= 0).all(axis=1)]
+            cal = calibrate(
+                robot,
+                data.subset(keep),
+                mdl,
+                measure,
+                test=test,
+                instrument_T_base=instrument_T_base,
+                tool=tool,
+                rotation_weight=rotation_weight,
+                pairs=kept_pairs,
+                loss=loss,
+                f_scale=f_scale,
+                rcond=rcond,
+                extension=ext,
+                params=params,
+                partial=partial,
+            )
+            rows = data.row_numbers[bad]
+            return replace(cal, excluded=tuple((int(r), float(s) * 1e3) for r, s in zip(rows, scores[bad])))
 
     # The URDF as it is: nominal tool, only the registration fitted.
     urdf_meas = replace(measurement, tool=tool_se3, fit_tool=False)
