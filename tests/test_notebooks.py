@@ -126,3 +126,20 @@ def test_diagnose_notebook_names_hidden_compliance() -> None:
     assert label == "joint_compliance:shoulder_lift_joint", label
     assert rigid >= 3 * extended, (rigid, extended)
     assert extended <= 1.5 * NOISE_FLOOR_MM, extended
+
+
+COMPENSATE = NOTEBOOKS_DIR / "04_compensate_and_plan.ipynb"
+COMPENSATE_LINE = re.compile(
+    r"compensated program on the true robot: RMS ([0-9.]+) mm vs held-out RMS ([0-9.]+) mm; "
+    r"uncompensated ([0-9.]+) mm"
+)
+
+
+def test_compensate_notebook_lands_within_the_held_out_error() -> None:
+    """Issue 8: compensated commands land within 1.5 x the calibration's held-out RMS on the
+    simulated true robot, where the uncompensated program misses by more than 1 mm."""
+    found = COMPENSATE_LINE.findall(output_text(executed(COMPENSATE)))
+    assert len(found) == 1, "the compensation notebook must print its 'compensated program' line once"
+    compensated, held_out, uncompensated = (float(v) for v in found[0])
+    assert compensated <= 1.5 * held_out, (compensated, held_out)
+    assert uncompensated > 1.0, uncompensated

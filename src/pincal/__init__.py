@@ -10,8 +10,9 @@ Load a robot, read or simulate measurements, calibrate, read the report::
 """
 
 from .checks import check_columns, check_limits, check_scale
+from .compensate import Compensation, compensate_program, write_program
 from .crossval import CrossValidation, cross_validate
-from .data import Dataset, read_csv, write_csv
+from .data import Dataset, Targets, read_csv, read_program, write_csv
 from .demo import gao2013_data
 from .diagnose import Candidate, Diagnosis
 from .effects import EFFECTS, Extension
@@ -23,6 +24,7 @@ from .mdh import MdhModel, MdhTable, mdh_table
 from .measurements import Measurement, Problem, all_pairs, gao_pairs
 from .models import MODELS, Model, OffsetsModel, PlacementsModel, PoeModel, make_model
 from .outliers import find_outliers, pose_scores
+from .planning import Design, Plan, candidate_poses, plan_poses, write_poses
 from .plots import plot_diagnosis
 from .report import report_dict, report_json, summary
 from .robots import BUNDLED, Robot, load_robot
@@ -30,7 +32,7 @@ from .simulate import TrueRobot, hide_effect, random_truth, simulate
 from .solver import Calibration, calibrate
 from .tool import ToolCalibration, calibrate_tool, read_flange_poses
 from .twists import Twists, chain_twists, gao_k, left_jacobian, nominal_twists, poe_forward
-from .urdf_writer import corrected_urdf, write_corrected_urdf
+from .urdf_writer import CalibratedRobot, corrected_urdf, load_calibration, write_corrected_urdf
 
 __version__ = "0.1.0"
 
@@ -38,17 +40,20 @@ __all__ = [
     "BUNDLED",
     "EFFECTS",
     "MODELS",
+    "CalibratedRobot",
     "Calibration",
     "Candidate",
     "Chain",
+    "Compensation",
     "CrossValidation",
     "DataError",
-    "Diagnosis",
     "Dataset",
+    "Design",
+    "Diagnosis",
     "ErrorStats",
     "Extension",
-    "IdentifiabilityError",
     "Identifiability",
+    "IdentifiabilityError",
     "MdhModel",
     "MdhTable",
     "Measurement",
@@ -57,20 +62,24 @@ __all__ = [
     "OffsetsModel",
     "PincalError",
     "PlacementsModel",
+    "Plan",
     "PoeModel",
     "Problem",
     "Robot",
     "RobotError",
+    "Targets",
     "ToolCalibration",
     "TrueRobot",
     "Twists",
     "all_pairs",
     "calibrate",
     "calibrate_tool",
+    "candidate_poses",
+    "chain_twists",
     "check_columns",
     "check_limits",
     "check_scale",
-    "chain_twists",
+    "compensate_program",
     "corrected_urdf",
     "cross_validate",
     "distance_errors",
@@ -83,17 +92,20 @@ __all__ = [
     "hide_effect",
     "joint_jacobian",
     "left_jacobian",
+    "load_calibration",
     "load_robot",
     "make_model",
     "mdh_table",
     "nominal_twists",
+    "plan_poses",
     "plot_diagnosis",
     "poe_forward",
-    "pose_scores",
     "pose_errors",
+    "pose_scores",
     "random_truth",
     "read_csv",
     "read_flange_poses",
+    "read_program",
     "report_dict",
     "report_json",
     "simulate",
@@ -101,4 +113,6 @@ __all__ = [
     "tip_jacobian",
     "write_corrected_urdf",
     "write_csv",
+    "write_poses",
+    "write_program",
 ]

@@ -93,6 +93,42 @@ def _build_parser() -> argparse.ArgumentParser:
     tcp.add_argument("--degrees", action="store_true", help="with --robot: joint values in degrees")
     _add_force(tcp)
 
+    comp = sub.add_parser(
+        "compensate", help="joint commands that make the calibrated robot reach the program"
+    )
+    comp.add_argument("robot", help="the nominal robot the program was written for (URDF or bundled name)")
+    comp.add_argument(
+        "calibration", type=Path, help="the corrected URDF 'calibrate -o' wrote (sidecar beside)"
+    )
+    comp.add_argument(
+        "program", type=Path, help="CSV: a column per chain joint, or tool targets x,y,z[,qw,qx,qy,qz]"
+    )
+    comp.add_argument("-o", "--output", type=Path, required=True, help="the compensated program (CSV)")
+    comp.add_argument("--task", choices=["pose", "position"], help="default: pose after pose data")
+    comp.add_argument("--degrees", action="store_true", help="revolute joint values in degrees (in and out)")
+    comp.add_argument("--units", choices=sorted(UNITS), default="m", help="unit of x,y,z targets, prismatic")
+    _add_force(comp)
+
+    plan = sub.add_parser("plan", help="choose measurement poses for identifiability (D-optimal)")
+    plan.add_argument("robot", help=f"a .urdf path or a bundled robot ({', '.join(BUNDLED)})")
+    plan.add_argument("--tip", help="the measured frame (default: the robot's documented tip)")
+    plan.add_argument("--poses", type=int, required=True, help="number of poses to measure")
+    plan.add_argument("--model", choices=MODELS, default="placements")
+    plan.add_argument("--measure", choices=MEASURES, default="position")
+    plan.add_argument(
+        "--candidates", type=int, default=1000, help="random feasible candidates to choose from"
+    )
+    plan.add_argument("--seed", type=int, default=0)
+    plan.add_argument("--units", choices=sorted(UNITS), default="m", help="unit of lengths given below")
+    plan.add_argument("--tool-point", type=_vector3, help="the measured point on the tip, X,Y,Z (if known)")
+    plan.add_argument("--clearance", type=float, default=0.05, help="height above the floor z = 0 [m]")
+    plan.add_argument("--instrument", type=_vector3, help="instrument position X,Y,Z in the base frame")
+    plan.add_argument("--reach", type=float, help="with --instrument: its range [units]")
+    plan.add_argument("--extend", metavar="EFFECT:JOINT", help="plan for a non-geometric effect too")
+    plan.add_argument("--degrees", action="store_true", help="write revolute joint values in degrees")
+    plan.add_argument("-o", "--output", type=Path, required=True, help="the poses (CSV, a column per joint)")
+    _add_force(plan)
+
     tw = sub.add_parser("twists", help="print the chain's nominal joint twists, checked against Pinocchio")
     tw.add_argument("robot")
     tw.add_argument("--tip")
@@ -367,6 +403,60 @@ def _calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _compensate(args: argparse.Namespace) -> int:
+    from .compensate import compensate_program, write_program
+    from .data import read_program
+    from .urdf_writer import load_calibration
+
+    side = args.calibration.with_name(args.calibration.stem + ".calibration.json")
+    inputs = {"program": args.program, "calibration URDF": args.calibration, "calibration sidecar": side}
+    _check_outputs(args, [args.output], {**inputs, "input URDF": _urdf_path(args.robot)})
+    cal = load_calibration(args.calibration)
+    nominal = load_robot(args.robot, tip=cal.robot.tip, joints=cal.robot.joint_names)
+    program = read_program(args.program, nominal, args.degrees, args.units)
+    result = compensate_program(nominal, cal, program, task=args.task)
+    n = len(result.status)
+    if not result.ok.any():
+        raise DataError(
+            f"none of the {n} rows could be compensated ({result.failures()[0]}): check that the "
+            "program is for this robot and within its limits"
+        )
+    write_program(args.output, result, args.degrees, nominal.prismatic)
+    worst = float(result.position_error[result.ok].max()) * 1e3
+    print(f"compensated {int(result.ok.sum())} of {n} rows ({result.task} task, worst {worst:.4f} mm)")
+    for line in result.failures():
+        print(f"  {line}")
+    print(f"written to {args.output}")
+    return 0
+
+
+def _plan(args: argparse.Namespace) -> int:
+    from .planning import plan_poses, write_poses
+
+    _check_outputs(args, [args.output], {"input URDF": _urdf_path(args.robot)})
+    if args.reach is not None and args.instrument is None:
+        raise DataError("--reach needs --instrument X,Y,Z (where the instrument stands)")
+    robot = load_robot(args.robot, tip=args.tip)
+    scale = UNITS[args.units]
+    plan = plan_poses(
+        robot,
+        args.poses,
+        model=args.model,
+        measure=args.measure,
+        candidates=args.candidates,
+        seed=args.seed,
+        tool=None if args.tool_point is None else args.tool_point * scale,
+        extension=args.extend,
+        clearance=args.clearance,
+        reach=None if args.reach is None else args.reach * scale,
+        instrument=None if args.instrument is None else args.instrument * scale,
+    )
+    print(plan.summary())
+    write_poses(args.output, plan, args.degrees)
+    print(f"written to {args.output}")
+    return 0
+
+
 def _twists(args: argparse.Namespace) -> int:
     from .twists import nominal_twists, poe_forward
 
@@ -389,11 +479,12 @@ def _twists(args: argparse.Namespace) -> int:
 
 
 def _attach_vectors(argv: Sequence[str]) -> list[str]:
-    """Write ``--tool-point -1,2,3`` as ``--tool-point=-1,2,3``: argparse takes ``-1,2,3`` for an option."""
+    """Write ``--tool-point -1,2,3`` as ``--tool-point=-1,2,3`` (also ``--instrument``): argparse
+    takes ``-1,2,3`` for an option."""
     out: list[str] = []
     for arg in argv:
-        if out and out[-1] == "--tool-point" and arg.startswith("-"):
-            out[-1] = f"--tool-point={arg}"
+        if out and out[-1] in ("--tool-point", "--instrument") and arg.startswith("-"):
+            out[-1] = f"{out[-1]}={arg}"
         else:
             out.append(arg)
     return out
@@ -411,6 +502,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _tcp(args)
         if args.command == "diagnose":
             return _diagnose(args)
+        if args.command == "compensate":
+            return _compensate(args)
+        if args.command == "plan":
+            return _plan(args)
         from .demo import run
 
         print(run(seed=args.seed))

@@ -19,8 +19,10 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 
 from .errors import DataError
+from .robots import Robot
 
 UNITS = {"m": 1.0, "mm": 1e-3}
 _QUAT = ("qw", "qx", "qy", "qz")
@@ -215,3 +217,44 @@ def atomic_write(path: str | Path, text: str) -> None:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+@dataclass(frozen=True)
+class Targets:
+    """Cartesian targets of the tool in the base frame: positions (N, 3) [m], rotations (N, 3, 3) or None."""
+
+    positions: np.ndarray
+    rotations: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return len(self.positions)
+
+    def __getitem__(self, i: int) -> pin.SE3:
+        return pin.SE3(np.eye(3) if self.rotations is None else self.rotations[i], self.positions[i])
+
+
+def read_program(
+    path: str | Path, robot: Robot, degrees: bool = False, units: str = "m"
+) -> np.ndarray | Targets:
+    """Read a program CSV: joint commands (N, n) [rad or m] from a column per chain joint, or else
+    :class:`Targets` from ``x,y,z`` (in ``units``) and optional ``qw,qx,qy,qz``. With joint columns,
+    ``x,y,z`` columns are ignored (they are measurements, not targets).
+
+    Raises:
+        DataError: missing file or columns, non-numeric cells, unknown unit.
+    """
+    if units not in UNITS:
+        raise DataError(f"unknown unit {units!r}: use m or mm")
+    header, names = set(csv_columns(path)), robot.joint_names
+    if set(names) <= header:
+        q = read_table(path, names, f"every chain joint ({', '.join(names)})")
+        prism = np.array(robot.prismatic)
+        q[:, ~prism] = np.deg2rad(q[:, ~prism]) if degrees else q[:, ~prism]
+        q[:, prism] *= UNITS[units]
+        return q
+    if not {"x", "y", "z"} <= header:
+        raise DataError(f"{path}: a program needs a column per joint ({', '.join(names)}) or targets x,y,z")
+    quat = ["qw", "qx", "qy", "qz"] if {"qw", "qx", "qy", "qz"} <= header else []
+    values = read_table(path, ["x", "y", "z", *quat], "x,y,z (and optionally qw,qx,qy,qz)")
+    rot = np.array([pin.Quaternion(*v[3:]).normalized().matrix() for v in values]) if quat else None
+    return Targets(values[:, :3] * UNITS[units], rot)

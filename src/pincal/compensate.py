@@ -1,0 +1,241 @@
+"""Compensation (Zhang et al., steps 5 and 6): the joint commands that make the calibrated robot
+reach the poses a program was written for.
+
+The calibration is what :func:`pincal.write_corrected_urdf` wrote: the corrected URDF and its
+sidecar ``<stem>.calibration.json`` (the tool ``tip_T_tool`` and any extension). Commanded ``q``,
+the joints reach ``q + e(q)`` (:mod:`pincal.effects`), so the tool is at
+``T(q) = FK_cal(q + e(q)) · tip_T_tool`` in the base frame. A row of commands ``q₀`` asks for
+``T* = FK_nom(q₀) · tip_T_tool``, where the nominal URDF puts the same tool; a Cartesian row gives
+``T*`` itself [m]. ``T(q) = T*`` is solved by damped least squares on Pinocchio's frame Jacobian of
+the tool, ``Δq = Jᵀ (J Jᵀ + λ² I)⁻¹ e``, from ``q₀``, projected onto the joint limits after every
+step. ``e`` is ``log6(T⁻¹ T*)`` (rotation weighted by ``rotation_weight`` [m/rad]) for the ``pose``
+task, the position error for ``position``: the default after pose data and after point data, which
+calibrate the measured point but not the tool's orientation. ``∂e/∂q`` is left out of ``J``
+(small beside the identity; the error itself is exact). A row ends ``ok``, ``unreachable`` (no
+command within the limits reaches ``T*``) or ``singular`` (the commands sit at a singularity: the
+correction needs a large joint motion or cannot be made); a failed row of commands keeps them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from .data import Targets, atomic_write
+from .errors import DataError, NotSupportedError
+from .measurements import ROTATION_WEIGHT
+from .robots import Robot
+from .urdf_writer import CalibratedRobot
+
+STATUSES = ("ok", "unreachable", "singular")
+
+
+@dataclass(frozen=True, eq=False)
+class Compensation:
+    """Compensated commands and the per-row report.
+
+    Attributes:
+        joint_names: the chain's joints.
+        task: ``pose`` or ``position``.
+        original: (N, n) the program's commands (for a Cartesian program: the start of each row's search).
+        q: (N, n) compensated commands (a failed row of commands keeps them; a failed Cartesian row
+            holds the closest commands found).
+        status: per row, one of :data:`STATUSES`.
+        position_error: (N,) the calibrated tool's distance to the target at ``q`` [m].
+        rotation_error: (N,) its orientation error [rad] (0 for the position task).
+        iterations: (N,) damped least-squares iterations.
+        messages: per row, why it failed ('' when ok).
+    """
+
+    joint_names: tuple[str, ...]
+    task: str
+    original: np.ndarray
+    q: np.ndarray
+    status: tuple[str, ...]
+    position_error: np.ndarray
+    rotation_error: np.ndarray
+    iterations: np.ndarray
+    messages: tuple[str, ...]
+
+    @property
+    def ok(self) -> np.ndarray:
+        """(N,) mask of the rows compensated."""
+        return np.array([s == "ok" for s in self.status])
+
+    def failures(self) -> list[str]:
+        """One line per failed row: ``row R: STATUS: why`` (R counts data rows from 1)."""
+        rows = zip(self.status, self.messages)
+        return [f"row {i}: {s}: {m}" for i, (s, m) in enumerate(rows, start=1) if s != "ok"]
+
+
+def _solve(
+    cal: CalibratedRobot, target: pin.SE3, q: np.ndarray, task: str, weight: float, opts: dict[str, float]
+) -> tuple[np.ndarray, float, float, int, bool, float]:
+    """Damped least squares from ``q``: the best commands met, their position [m] and rotation
+    [rad] errors, iterations, convergence, and σmin/σmax of the task Jacobian at the start."""
+    model, fid = cal.tool_frame
+    data = model.createData()
+    lo, hi = cal.robot.lower, cal.robot.upper
+    q = np.clip(q, lo, hi)
+    w = np.array([1.0, 1.0, 1.0, weight, weight, weight])
+    ratio, it, best = 1.0, 0, (q, np.inf, np.inf)
+    while True:
+        pin.computeJointJacobians(model, data, cal.robot.configuration(cal.reached(q)[0]))
+        pose = pin.updateFramePlacement(model, data, fid)
+        pos_err = float(np.linalg.norm(target.translation - pose.translation))
+        if task == "pose":
+            i_m_d = pose.actInv(target)
+            err = w * pin.log6(i_m_d).vector
+            jac = w[:, None] * (
+                pin.Jlog6(i_m_d.inverse()) @ pin.getFrameJacobian(model, data, fid, pin.LOCAL)
+            )
+            rot_err = float(np.linalg.norm(err[3:])) / weight
+        else:
+            err = target.translation - pose.translation
+            jac = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)[:3]
+            rot_err = 0.0
+        if it == 0:
+            sv = np.linalg.svd(jac, compute_uv=False)
+            ratio = float(sv[-1] / sv[0]) if sv[0] > 0 else 0.0
+        if pos_err + weight * rot_err < best[1] + weight * best[2]:
+            best = (q, pos_err, rot_err)
+        converged = pos_err <= opts["tol"] and rot_err <= opts["rot_tol"]
+        if converged or it >= opts["max_iter"]:
+            return (*best, it, converged, ratio)
+        dq = jac.T @ np.linalg.solve(jac @ jac.T + opts["damping"] ** 2 * np.eye(len(err)), err)
+        q = np.clip(q + dq * min(1.0, 0.25 / max(float(np.abs(dq).max()), 1e-12)), lo, hi)  # ≤ 0.25 a step
+        it += 1
+
+
+def compensate_program(
+    nominal: Robot,
+    calibrated: CalibratedRobot,
+    program: np.ndarray | Targets,
+    *,
+    task: str | None = None,
+    rotation_weight: float = ROTATION_WEIGHT,
+    tol: float = 1e-7,
+    rot_tol: float = 1e-6,
+    max_iter: int = 100,
+    damping: float = 1e-4,
+    singular_rcond: float = 1e-3,
+    max_change: float = 0.2,
+    restarts: int = 8,
+    seed: int = 0,
+) -> Compensation:
+    """Compensated commands for every row of a program (see the module docstring).
+
+    Args:
+        nominal: the URDF the program was written for (its targets, for rows of commands).
+        calibrated: the calibration (see :func:`load_calibration`).
+        program: joint commands (N, n) [rad or m], or :class:`Targets`.
+        task: ``pose`` or ``position`` (default: ``pose`` on 6+ joints after pose data, or for
+            targets with orientations; else ``position``).
+        rotation_weight: weight of orientation errors [m/rad] in the pose task.
+        tol: position tolerance [m]. rot_tol: orientation tolerance [rad].
+        max_iter: iterations per search.
+        damping: λ of the damped least squares [m].
+        singular_rcond: σmin/σmax of the task Jacobian under which commands count as singular.
+        max_change: largest joint change [rad or m] a row of commands may need before it counts as singular.
+        restarts: random restarts for a Cartesian row the previous row's solution does not reach.
+        seed: seed of the restarts.
+
+    Raises:
+        DataError: the joints differ between the robots or the program, or an unknown task.
+        NotSupportedError: a pose task on a chain of fewer than 6 joints.
+    """
+    robot = calibrated.robot
+    cartesian = isinstance(program, Targets)
+    n_rows = len(program)
+    q_in = np.zeros((n_rows, robot.n_joints)) if cartesian else np.atleast_2d(np.asarray(program, float))
+    if nominal.joint_names != robot.joint_names or q_in.shape[1] != robot.n_joints:
+        raise DataError(
+            f"the program and the nominal robot must have the calibration's joints {robot.joint_names}"
+        )
+    oriented = program.rotations is not None if isinstance(program, Targets) else calibrated.measure == "pose"
+    default = "pose" if oriented else "position"
+    task = task or (default if robot.n_joints >= 6 else "position")
+    if task not in ("pose", "position"):
+        raise DataError(f"unknown task {task!r}: use pose or position")
+    if task == "pose" and robot.n_joints < 6:
+        raise NotSupportedError(
+            f"a {robot.n_joints}-joint chain cannot follow 6-D poses: use the position task"
+        )
+    opts = {"tol": tol, "rot_tol": rot_tol, "max_iter": max_iter, "damping": damping}
+    rng = np.random.default_rng(seed)
+    out, start = q_in.copy(), q_in.copy()
+    pos_e, rot_e, iters = np.zeros(n_rows), np.zeros(n_rows), np.zeros(n_rows, dtype=int)
+    status, messages = ["ok"] * n_rows, [""] * n_rows
+    previous = robot.random_configurations(1, rng, 0.1)[0]
+
+    def cost(found: tuple) -> float:
+        return found[1] + rotation_weight * found[2]
+
+    for i in range(n_rows):
+        if cartesian:
+            target, tries = program[i], [previous, *robot.random_configurations(restarts, rng, 0.1)]
+        else:
+            target, tries = nominal.frame_placement(q_in[i]) * calibrated.tool, [q_in[i]]
+            outside = _beyond(robot, q_in[i], strict=True)
+            if outside:
+                status[i], messages[i] = "unreachable", f"the commands are beyond the limits of {outside}"
+                continue
+        best: tuple | None = None
+        for guess in tries:
+            found = _solve(calibrated, target, guess, task, rotation_weight, opts)
+            if best is None or found[4] or cost(found) < cost(best):
+                best, start[i] = found, guess
+            if found[4]:
+                break
+        q, pos_e[i], rot_e[i], iters[i], converged, ratio = best  # type: ignore[misc]
+        change = float(np.abs(q - start[i]).max())
+        off = f"{pos_e[i] * 1e3:.3f} mm" + (f", {rot_e[i] * 1e3:.3f} mrad" if task == "pose" else "")
+        if converged and (cartesian or change <= max_change):
+            out[i], previous = q, q
+            continue
+        out[i] = q if cartesian else out[i]
+        if converged:
+            status[i], messages[i] = (
+                "singular",
+                f"near a singularity: needs a joint change of {change:.3f} rad",
+            )
+        elif not cartesian and ratio < singular_rcond:
+            status[i], messages[i] = "singular", f"at a singularity (σmin/σmax {ratio:.1e}): {off} off"
+        else:
+            limit = _beyond(robot, q, strict=False)
+            why = (f"; {limit} at a joint limit" if limit else "") + (
+                f"; σmin/σmax {ratio:.1e} at the commands"
+                if not cartesian and ratio < 10 * singular_rcond
+                else ""
+            )
+            status[i], messages[i] = "unreachable", f"out of reach: the closest pose found is {off} off{why}"
+    return Compensation(
+        robot.joint_names, task, start, out, tuple(status), pos_e, rot_e, iters, tuple(messages)
+    )
+
+
+def _beyond(robot: Robot, q: np.ndarray, strict: bool) -> str:
+    """Joints beyond their limits (``strict``) or at them, comma separated."""
+    out = [
+        j
+        for j, v, a, b in zip(robot.joint_names, q, robot.lower, robot.upper)
+        if (v < a or v > b) or (not strict and (v <= a or v >= b))
+    ]
+    return ", ".join(out)
+
+
+def write_program(
+    path: str | Path, result: Compensation, degrees: bool = False, prismatic: tuple[bool, ...] | None = None
+) -> None:
+    """Write the compensated commands (radians, or degrees for revolute joints) and a ``status``
+    column, atomically."""
+    q = result.q.copy()
+    if degrees:
+        revolute = ~np.array(prismatic or (False,) * q.shape[1])
+        q[:, revolute] = np.rad2deg(q[:, revolute])
+    lines = [",".join([*result.joint_names, "status"])]
+    lines += [",".join([*(repr(float(v)) for v in row), s]) for row, s in zip(q, result.status)]
+    atomic_write(path, "\n".join(lines) + "\n")
