@@ -28,6 +28,13 @@ from .planning import Design, Plan, candidate_poses, plan_poses, write_poses
 from .plots import plot_diagnosis
 from .report import report_dict, report_json, summary
 from .robots import BUNDLED, Robot, load_robot
+from .selection import (
+    Selection,
+    SelectionCrossValidation,
+    SelectionStep,
+    cross_validate_selection,
+    select_parameters,
+)
 from .simulate import TrueRobot, hide_effect, random_truth, simulate
 from .solver import Calibration, calibrate
 from .tool import ToolCalibration, calibrate_tool, read_flange_poses
@@ -67,6 +74,9 @@ __all__ = [
     "Problem",
     "Robot",
     "RobotError",
+    "Selection",
+    "SelectionCrossValidation",
+    "SelectionStep",
     "Targets",
     "ToolCalibration",
     "TrueRobot",
@@ -82,6 +92,7 @@ __all__ = [
     "compensate_program",
     "corrected_urdf",
     "cross_validate",
+    "cross_validate_selection",
     "distance_errors",
     "evaluate",
     "find_outliers",
@@ -108,6 +119,7 @@ __all__ = [
     "read_program",
     "report_dict",
     "report_json",
+    "select_parameters",
     "simulate",
     "summary",
     "tip_jacobian",

@@ -56,7 +56,7 @@ def fold_indices(n: int, folds: int, seed: int = 0) -> list[np.ndarray]:
     return [np.sort(f) for f in np.array_split(order, folds)]
 
 
-def _held_out_errors(cal: Calibration, data: Dataset, held: np.ndarray) -> list[np.ndarray]:
+def held_out_errors(cal: Calibration, data: Dataset, held: np.ndarray) -> list[np.ndarray]:
     """Held-out errors [m] of the URDF, before and after, for one fold."""
     out = []
     for meas, theta in (
@@ -101,7 +101,7 @@ def cross_validate(
         fit = np.setdiff1d(np.arange(len(data)), held)
         cal = calibrate(robot, data.subset(fit), model, measure, **{**options, "partial": True})
         cals.append(cal)
-        for store, errs in zip(pooled, _held_out_errors(cal, data, held)):
+        for store, errs in zip(pooled, held_out_errors(cal, data, held)):
             store.append(errs)
     urdf, before, after = (ErrorStats.of(np.concatenate(p)) for p in pooled)
     return CrossValidation(folds, urdf, before, after, tuple(cals))
