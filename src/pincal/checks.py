@@ -77,6 +77,13 @@ def check_limits(robot: Robot, data: Dataset, degrees: bool = False) -> None:
     Raises:
         DataError: the first joint whose values leave its limits, with the row and a hint.
     """
+    revolute = ~np.asarray(robot.prismatic, dtype=bool)
+    small = np.deg2rad(2 * np.pi) + 1e-12  # [rad]: 2π read as degrees
+    if degrees and revolute.any() and len(data) > 2 and np.abs(data.q[:, revolute]).max() <= small:
+        raise DataError(
+            "with --degrees every revolute joint value is within ±6.3 degrees: "
+            "the values look like radians, drop --degrees"
+        )
     tol = np.where(robot.prismatic, LIMIT_TOLERANCE[1], LIMIT_TOLERANCE[0])
     below = data.q < robot.lower - tol
     above = data.q > robot.upper + tol
@@ -92,7 +99,11 @@ def check_limits(robot: Robot, data: Dataset, degrees: bool = False) -> None:
     if robot.prismatic[joint]:
         if np.all((col * 1e-3 >= lo - tol[joint]) & (col * 1e-3 <= hi + tol[joint])):
             hint = "the values look like millimetres: pass --units mm"
-    elif not degrees and np.all((np.deg2rad(col) >= lo - tol[joint]) & (np.deg2rad(col) <= hi + tol[joint])):
+    elif (
+        not degrees
+        and np.abs(col).max() > 2 * np.pi + tol[joint]  # no angle in radians is that large
+        and np.all((np.deg2rad(col) >= lo - tol[joint]) & (np.deg2rad(col) <= hi + tol[joint]))
+    ):
         hint = "the values look like degrees given as radians: pass --degrees"
     raise DataError(
         f"data row {int(data.row_numbers[first])}, column {robot.joint_names[joint]}: "
@@ -117,8 +128,13 @@ def check_scale(robot: Robot, data: Dataset, units: str = "m") -> None:
         DataError: the spreads differ by more than :data:`SCALE_RATIO`.
     """
     tips = np.array([robot.frame_placement(q).translation for q in data.q])
-    tip_spread = _spread(tips)
-    measured = _spread(data.points)
+    with np.errstate(over="ignore", invalid="ignore"):
+        tip_spread = _spread(tips)
+        measured = _spread(data.points)
+    if not np.isfinite(tip_spread):
+        raise DataError("the URDF puts the tip beyond any finite distance: check its joint origins")
+    if not np.isfinite(measured) or measured > 1e6:  # [m]
+        raise DataError(f"the measured points x,y,z are {measured:.3g} m apart or more: check their unit")
     if len(data) < 3 or tip_spread < 1e-3:  # [m] poses alike: the rank check says why
         return
     ratio = measured / tip_spread

@@ -35,13 +35,30 @@ class _Parser(argparse.ArgumentParser):
         raise PincalError(f"{message} (see '{self.prog} --help')")
 
 
+def _folds(text: str) -> int:
+    value = _seed(text)
+    if value < 2:
+        raise argparse.ArgumentTypeError(f"cross-validation needs 2 folds or more, got {value}")
+    return value
+
+
+def _seed(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"a seed is 0 or more, got {value}")
+    return value
+
+
 def _vector3(text: str) -> np.ndarray:
     try:
         values = np.array([float(v) for v in text.split(",")])
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected X,Y,Z numbers, got {text!r}") from None
-    if values.shape != (3,) or not np.all(np.isfinite(values)):
-        raise argparse.ArgumentTypeError(f"expected three finite numbers X,Y,Z, got {text!r}")
+    if values.shape != (3,) or not np.all(np.abs(values) < 1e6):
+        raise argparse.ArgumentTypeError(f"expected three finite numbers X,Y,Z (below 1e6), got {text!r}")
     return values
 
 
@@ -53,7 +70,7 @@ def _build_parser() -> argparse.ArgumentParser:
     _add_data_options(cal)
     cal.add_argument("--test", type=Path, help="held-out poses (CSV) for the error after calibration")
     cal.add_argument("--holdout", type=float, help="fraction of the poses to hold out instead of --test")
-    cal.add_argument("--seed", type=int, default=0, help="seed of the --holdout split")
+    cal.add_argument("--seed", type=_seed, default=0, help="seed of the --holdout split")
     cal.add_argument("--report", type=Path, help="write the JSON report here")
     cal.add_argument(
         "-o", "--output", type=Path, help="write the corrected URDF here (and NAME.calibration.json)"
@@ -73,12 +90,12 @@ def _build_parser() -> argparse.ArgumentParser:
     _add_data_options(diag)
     diag.add_argument("--json", type=Path, help="write the diagnosis as JSON here")
     diag.add_argument("--plots", type=Path, metavar="DIR", help="write a PNG of the named cause here")
-    diag.add_argument("--folds", type=int, default=5, help="folds of the cross-validation")
-    diag.add_argument("--seed", type=int, default=0, help="seed of the folds")
+    diag.add_argument("--folds", type=_folds, default=5, help="folds of the cross-validation (2 or more)")
+    diag.add_argument("--seed", type=_seed, default=0, help="seed of the folds")
     _add_force(diag)
 
     demo = sub.add_parser("demo", help="calibrate bundled data and print before/after tables")
-    demo.add_argument("--seed", type=int, default=0)
+    demo.add_argument("--seed", type=_seed, default=0)
 
     tcp = sub.add_parser("tcp", help="tool centre point and tool frame from flange poses (Xiong 2012)")
     tcp.add_argument(
@@ -118,7 +135,7 @@ def _build_parser() -> argparse.ArgumentParser:
     plan.add_argument(
         "--candidates", type=int, default=1000, help="random feasible candidates to choose from"
     )
-    plan.add_argument("--seed", type=int, default=0)
+    plan.add_argument("--seed", type=_seed, default=0)
     plan.add_argument("--units", choices=sorted(UNITS), default="m", help="unit of lengths given below")
     plan.add_argument("--tool-point", type=_vector3, help="the measured point on the tip, X,Y,Z (if known)")
     plan.add_argument("--clearance", type=float, default=0.05, help="height above the floor z = 0 [m]")
@@ -366,6 +383,8 @@ def _calibrate(args: argparse.Namespace) -> int:
     check_frame_name(args.add_frame)
     if args.test is not None and args.holdout is not None:
         raise DataError("give either --test or --holdout, not both")
+    if args.output is not None and (args.output.is_dir() or not args.output.name):
+        raise DataError(f"-o {args.output} is a folder: give a file name such as robot_calibrated.urdf")
     side = None if args.output is None else args.output.with_name(args.output.stem + ".calibration.json")
     _check_outputs(
         args,

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from .data import Dataset
+from .errors import DataError
 from .evaluation import ErrorStats, pose_errors
 from .measurements import Problem, all_pairs
 from .robots import Robot
@@ -95,6 +96,8 @@ def cross_validate(
         **options: passed to :func:`pincal.calibrate`; each fold fits what its poses identify
             (``partial=True``: a fold may lack the variety of the whole).
     """
+    if not 2 <= folds <= len(data):
+        raise DataError(f"cross-validation needs between 2 and {len(data)} folds (one per pose), got {folds}")
     pooled: list[list[np.ndarray]] = [[], [], []]
     cals = []
     for held in fold_indices(len(data), folds, seed):

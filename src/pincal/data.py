@@ -85,8 +85,14 @@ class Dataset:
         """Random (fit, held-out) split, ``fraction`` of the poses held out."""
         if not 0.0 < fraction < 1.0:
             raise DataError(f"--holdout must be a fraction between 0 and 1, got {fraction}")
+        if seed < 0:
+            raise DataError(f"--seed must be 0 or more, got {seed}")
         order = np.random.default_rng(seed).permutation(len(self))
         n_out = max(1, round(fraction * len(self)))
+        if n_out >= len(self):
+            raise DataError(
+                f"--holdout {fraction} of {len(self)} poses leaves none to fit: hold out a smaller fraction"
+            )
         return self.subset(np.sort(order[n_out:])), self.subset(np.sort(order[:n_out]))
 
 
@@ -105,7 +111,10 @@ def _read_lines(path: Path) -> list[str]:
 
 def csv_columns(path: str | Path) -> list[str]:
     """The column names of a measurement CSV (its first non-comment line)."""
-    return [h.strip() for h in next(csv.reader(_read_lines(Path(path))[:1]))]
+    try:
+        return [h.strip() for h in next(csv.reader(_read_lines(Path(path))[:1]))]
+    except csv.Error as exc:
+        raise DataError(f"{path}: malformed header line ({exc})") from None
 
 
 def read_table(
@@ -123,16 +132,18 @@ def read_table(
         DataError: missing file, duplicated or missing columns, no rows, non-numeric or non-finite cells.
     """
     path = Path(path)
-    reader = csv.reader(io.StringIO("\n".join(_read_lines(path))))
-    header = [h.strip() for h in next(reader)]
-    dupes = sorted({h for h in header if header.count(h) > 1})
+    try:
+        rows = list(csv.reader(io.StringIO("\n".join(_read_lines(path)))))
+    except csv.Error as exc:
+        raise DataError(f"{path}: malformed CSV ({exc})") from None
+    header = [h.strip() for h in rows.pop(0)]
+    dupes = sorted({h for h in header if h and header.count(h) > 1})
     if dupes:
         raise DataError(f"{path}: duplicated column(s) {', '.join(dupes)}")
     names = [(rename or {}).get(c, c) for c in columns]
     missing = [c for c in names if c not in header]
     if missing:
         raise DataError(f"{path}: missing column(s) {', '.join(missing)}; the header must name {what}")
-    rows = list(reader)
     if not rows:
         raise DataError(f"{path} has a header but no data rows")
     cols = [header.index(c) for c in names]
@@ -188,7 +199,16 @@ def read_csv(
     q[:, prism] *= UNITS[units]
     points = values[:, n : n + 3] * UNITS[units]
     quats = values[:, n + 3 : n + 7] if has_quat else None
+    if quats is not None:
+        check_quaternions(path, quats)
     return Dataset(tuple(joint_names), q, points, quats)
+
+
+def check_quaternions(path: str | Path, quats: np.ndarray) -> None:
+    """Refuse quaternions (N, 4) of zero length, naming the first such data row."""
+    zero = np.flatnonzero(np.linalg.norm(quats, axis=1) < 1e-9)
+    if zero.size:
+        raise DataError(f"{path}: data row {zero[0] + 1}: the quaternion qw,qx,qy,qz is zero, not a rotation")
 
 
 def write_csv(path: str | Path, data: Dataset, units: str = "m") -> None:

@@ -17,6 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
+from .errors import IdentifiabilityError
+
 #: Singular values below ``RCOND · σ_max`` count as zero.
 RCOND = 1e-6
 
@@ -75,7 +77,9 @@ def analyse(
         js = np.linalg.qr(js, mode="r")
     norms = np.linalg.norm(js, axis=0)
     if cand.size == 0 or not np.any(norms > 0):
-        raise ValueError("no parameter has any effect on the measurements")
+        raise IdentifiabilityError(
+            "no parameter has any effect on these measurements: the poses are too few or all alike"
+        )
     sv = np.linalg.svd(js, compute_uv=False)
     tol = rcond * sv[0]
     rank = int(np.sum(sv > tol))

@@ -238,7 +238,7 @@ class Problem:
             res = dist - self.measured_distances
             if not jacobian:
                 return res, np.empty((0, self.n_params))
-            u = diff / dist[:, None]
+            u = diff / np.where(dist > 0, dist, 1.0)[:, None]  # a pose paired with itself: no direction
             jac = np.einsum("pk,pkc->pc", u, jac_target[i, :3] - jac_target[j, :3])
             return res, jac
 

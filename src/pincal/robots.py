@@ -9,10 +9,14 @@ joints' local unit twists ``S_j``. Lengths are metres, angles radians.
 
 from __future__ import annotations
 
+import contextlib
 import importlib.metadata
 import math
+import os
 import re
-from collections.abc import Iterable, Mapping
+import sys
+import tempfile
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -156,7 +160,7 @@ class Robot:
 
 
 _DOCTYPE = re.compile(r"<!DOCTYPE", re.IGNORECASE)
-_DECLARATION = re.compile(r"<!(ENTITY|ELEMENT|ATTLIST)|\b(SYSTEM|PUBLIC)\b", re.IGNORECASE)
+_DECLARATION = re.compile(r"<!(ENTITY|ELEMENT|ATTLIST)|\b(SYSTEM|PUBLIC)\b")
 MAX_URDF_BYTES = 50_000_000  # [bytes] far above any robot description
 
 
@@ -179,16 +183,44 @@ def read_urdf_text(path: Path) -> str:
         raise RobotError(f"URDF file not found: {path}") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise RobotError(f"cannot read URDF {path}: {exc}") from None
-    doctype = _DOCTYPE.search(text)
-    if doctype is not None:
-        start = doctype.start()
-        end = text.find("<robot", start)
-        if _DECLARATION.search(text, start, end if end > 0 else len(text)):
-            raise RobotError(
-                f"URDF {path} has a DOCTYPE that declares entities or an external DTD, which could "
-                "read other files: remove the <!DOCTYPE ...> block (a URDF needs none)"
-            )
+    # Declarations anywhere count: a comment may hide the end of the DOCTYPE.
+    if _DOCTYPE.search(text) is not None and _DECLARATION.search(text):
+        raise RobotError(
+            f"URDF {path} has a DOCTYPE that declares entities or an external DTD, which could "
+            "read other files: remove the <!DOCTYPE ...> block (a URDF needs none)"
+        )
     return text
+
+
+def _deepest_body(model: pin.Model) -> str:
+    """The body frame with the most joints between the base and it (the last such, on ties)."""
+
+    def depth(joint: int) -> int:
+        count = 0
+        while joint > 0:
+            joint, count = model.parents[joint], count + 1
+        return count
+
+    bodies = [f for f in model.frames if f.type == pin.FrameType.BODY]
+    best = max(depth(f.parentJoint) for f in bodies)
+    return next(f.name for f in reversed(bodies) if depth(f.parentJoint) == best)
+
+
+@contextlib.contextmanager
+def _stderr_captured() -> Iterator[Callable[[], list[str]]]:
+    """Capture what C++ code writes to file descriptor 2 (urdfdom's parse errors)."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile(mode="w+b") as sink:
+        os.dup2(sink.fileno(), 2)
+        lines: list[str] = []
+        try:
+            yield lambda: lines
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            sink.seek(0)
+            lines.extend(sink.read().decode("utf-8", "replace").splitlines())
 
 
 def _find_frame(model: pin.Model, name: str) -> int:
@@ -231,13 +263,24 @@ def load_robot(
             raise RobotError(f"unknown robot {name!r}: give a .urdf path or one of {', '.join(BUNDLED)}")
         if not path.is_file():
             raise RobotError(f"URDF file not found: {path}")
-    try:
-        full = pin.buildModelFromXML(read_urdf_text(path))
-    except (RuntimeError, ValueError) as exc:
-        raise RobotError(f"cannot load URDF {path}: {' '.join(str(exc).split())}") from None
+    text = read_urdf_text(path)
+    with _stderr_captured() as said:
+        try:
+            full = pin.buildModelFromXML(text)
+        except (RuntimeError, ValueError) as exc:
+            full, error = None, " ".join(str(exc).split())
+    if full is None:
+        detail = next((ln.strip() for ln in said() if ln.strip().lower().startswith("error")), "")
+        raise RobotError(
+            f"cannot load URDF {path}: {detail or error}: fix the URDF (check it with check_urdf)"
+        )
     if tip is None:
-        tip = next(f.name for f in reversed(full.frames) if f.type == pin.FrameType.BODY)
+        tip = _deepest_body(full)
     tip_id = _find_frame(full, tip)
+    if full.frames[tip_id].parentJoint == 0:
+        raise RobotError(
+            f"frame {tip!r} has no joint between the base and it: choose a tip on the arm with --tip"
+        )
 
     path_ids: list[int] = []
     j = full.frames[tip_id].parentJoint

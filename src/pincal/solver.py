@@ -283,6 +283,8 @@ def calibrate(
         DataError: unknown measure or loss, data that does not fit the robot.
         IdentifiabilityError: fewer equations than identifiable parameters.
     """
+    if len(data) < 2:
+        raise IdentifiabilityError(f"{len(data)} pose(s) to fit: a calibration needs many varied poses")
     if tuple(data.joint_names) != robot.joint_names:
         raise DataError(f"the data's joints {data.joint_names} are not the chain's {robot.joint_names}")
     if loss not in LOSSES:

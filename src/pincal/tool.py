@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from .data import UNITS, csv_columns, read_table
+from .data import UNITS, check_quaternions, csv_columns, read_table
 from .errors import DataError
 from .robots import Robot
 
@@ -304,6 +304,7 @@ def read_flange_poses(
     names = {(rename or {}).get(c, c) for c in ("qw", "qx", "qy", "qz")}
     if names <= header:
         values = read_table(path, ["x", "y", "z", "qw", "qx", "qy", "qz"], "x,y,z,qw,qx,qy,qz", rename)
+        check_quaternions(path, values[:, 3:])
         quats = values[:, 3:] / np.linalg.norm(values[:, 3:], axis=1, keepdims=True)
         rotations = np.array([pin.Quaternion(*qt).toRotationMatrix() for qt in quats])
         return rotations, values[:, :3]
