@@ -25,7 +25,7 @@ from .outliers import THRESHOLD
 from .robots import BUNDLED, Robot, bundled_urdf, load_robot
 from .solver import LOSSES, calibrate
 from .tool import ORIENTATIONS, calibrate_tool, read_flange_poses
-from .urdf_writer import check_frame_name, check_output, write_corrected_urdf
+from .urdf_writer import check_frame_name, sidecar_path, write_corrected_urdf
 
 
 class _Parser(argparse.ArgumentParser):
@@ -35,21 +35,22 @@ class _Parser(argparse.ArgumentParser):
         raise PincalError(f"{message} (see '{self.prog} --help')")
 
 
-def _folds(text: str) -> int:
-    value = _seed(text)
-    if value < 2:
-        raise argparse.ArgumentTypeError(f"cross-validation needs 2 folds or more, got {value}")
-    return value
-
-
-def _seed(text: str) -> int:
+def _whole(text: str, minimum: int, what: str) -> int:
     try:
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"a seed is 0 or more, got {value}")
+    if value < minimum:
+        raise argparse.ArgumentTypeError(f"{what} is {minimum} or more, got {value}")
     return value
+
+
+def _folds(text: str) -> int:
+    return _whole(text, 2, "the number of cross-validation folds")
+
+
+def _seed(text: str) -> int:
+    return _whole(text, 0, "a seed")
 
 
 def _vector3(text: str) -> np.ndarray:
@@ -385,15 +386,13 @@ def _calibrate(args: argparse.Namespace) -> int:
         raise DataError("give either --test or --holdout, not both")
     if args.output is not None and (args.output.is_dir() or not args.output.name):
         raise DataError(f"-o {args.output} is a folder: give a file name such as robot_calibrated.urdf")
-    side = None if args.output is None else args.output.with_name(args.output.stem + ".calibration.json")
+    side = None if args.output is None else sidecar_path(args.output)
     _check_outputs(
         args,
         [args.output, side, args.report],
         {"data file": args.data, "test data file": args.test, "input URDF": _urdf_path(args.robot)},
     )
     robot = _robot(args)
-    if args.output is not None:
-        check_output(args.output, robot)
     extension = Extension.parse(robot, args.extend, args.payload) if args.extend else None
     data = _load_data(args.data, robot, args)
     test = _load_data(args.test, robot, args) if args.test is not None else None
@@ -427,8 +426,11 @@ def _compensate(args: argparse.Namespace) -> int:
     from .data import read_program
     from .urdf_writer import load_calibration
 
-    side = args.calibration.with_name(args.calibration.stem + ".calibration.json")
-    inputs = {"program": args.program, "calibration URDF": args.calibration, "calibration sidecar": side}
+    inputs = {
+        "program": args.program,
+        "calibration URDF": args.calibration,
+        "calibration sidecar": sidecar_path(args.calibration),
+    }
     _check_outputs(args, [args.output], {**inputs, "input URDF": _urdf_path(args.robot)})
     cal = load_calibration(args.calibration)
     nominal = load_robot(args.robot, tip=cal.robot.tip, joints=cal.robot.joint_names)
@@ -509,26 +511,29 @@ def _attach_vectors(argv: Sequence[str]) -> list[str]:
     return out
 
 
+def _demo(args: argparse.Namespace) -> int:
+    from .demo import run
+
+    print(run(seed=args.seed))
+    return 0
+
+
+_COMMANDS = {
+    "calibrate": _calibrate,
+    "diagnose": _diagnose,
+    "tcp": _tcp,
+    "twists": _twists,
+    "compensate": _compensate,
+    "plan": _plan,
+    "demo": _demo,
+}
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``pincal`` command."""
     try:
         args = _build_parser().parse_args(_attach_vectors(sys.argv[1:] if argv is None else argv))
-        if args.command == "calibrate":
-            return _calibrate(args)
-        if args.command == "twists":
-            return _twists(args)
-        if args.command == "tcp":
-            return _tcp(args)
-        if args.command == "diagnose":
-            return _diagnose(args)
-        if args.command == "compensate":
-            return _compensate(args)
-        if args.command == "plan":
-            return _plan(args)
-        from .demo import run
-
-        print(run(seed=args.seed))
-        return 0
+        return _COMMANDS[args.command](args)
     except PincalError as exc:
         message = " ".join(str(exc).split())
         print(f"pincal: error: {message}", file=sys.stderr)

@@ -118,11 +118,17 @@ class Calibration:
 
 
 def _check_rank(
-    problem: Problem, theta: np.ndarray, scale: np.ndarray, candidates: np.ndarray, rcond: float
+    problem: Problem,
+    theta: np.ndarray,
+    jacobian: np.ndarray,
+    scale: np.ndarray,
+    candidates: np.ndarray,
+    rcond: float,
 ) -> int:
     """How many parameters varied poses identify; an error if these poses identify fewer.
 
-    The reference is the same problem on random poses within the joint limits, measured exactly.
+    The reference is the same problem on random poses within the joint limits, measured exactly;
+    ``jacobian`` is the data's, at ``theta``.
 
     Raises:
         IdentifiabilityError: naming the parameters the data cannot see, and the likely cause.
@@ -136,10 +142,8 @@ def _check_rank(
     points, rotations = Problem(problem.model, meas, blank, problem.extension).predict(theta)
     exact = replace(blank, points=points, quaternions=None if quats is None else _quaternions(rotations))
     reference = Problem(problem.model, meas, exact, problem.extension)
-    rank, lost = lost_parameters(
-        problem.jacobian(theta), reference.jacobian(theta), problem.names, scale, candidates, rcond
-    )
-    if not lost or len(problem.residuals(theta)) <= rank:  # too few equations: the caller says so
+    rank, lost = lost_parameters(jacobian, reference.jacobian(theta), problem.names, scale, candidates, rcond)
+    if not lost or len(jacobian) <= rank:  # too few equations: the caller says so
         return rank
     span = np.ptp(data.q, axis=0)
     still = [j for j, s, p in zip(robot.joint_names, span, robot.prismatic) if s < (1e-4 if p else 1e-3)]
@@ -343,9 +347,12 @@ def calibrate(
     preference = np.ones(problem.n_params)
     preference[:n_model] = 1.0 + 0.05 * np.linspace(0.0, 1.0, n_model)
     preference[n_model:] = 2.0
-    ident = analyse(problem.jacobian(theta), problem.names, scale, candidates, preference, held, rcond)
-    n_res = len(problem.residuals(theta))
-    n_needed = ident.n_identifiable if partial else _check_rank(problem, theta, scale, candidates, rcond)
+    jacobian = problem.jacobian(theta)
+    ident = analyse(jacobian, problem.names, scale, candidates, preference, held, rcond)
+    n_res = len(jacobian)
+    n_needed = (
+        ident.n_identifiable if partial else _check_rank(problem, theta, jacobian, scale, candidates, rcond)
+    )
     if n_res <= n_needed:
         per_pose = max(1, n_res // max(1, len(data)))
         raise IdentifiabilityError(

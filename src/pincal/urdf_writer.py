@@ -201,6 +201,12 @@ def sidecar(cal: Calibration, urdf_name: str) -> dict[str, Any]:
     }
 
 
+def sidecar_path(urdf: str | Path) -> Path:
+    """Where the sidecar of a corrected URDF lives: ``<stem>.calibration.json`` beside it."""
+    urdf = Path(urdf)
+    return urdf.with_name(urdf.stem + ".calibration.json")
+
+
 def check_output(path: Path, robot: Robot) -> None:
     """Refuse an output that is the input URDF or sits in a folder that does not exist."""
     if path.resolve() == Path(robot.urdf_path).resolve():
@@ -219,7 +225,7 @@ def write_corrected_urdf(
     """
     path = Path(path)
     check_output(path, cal.robot)
-    side = path.with_name(path.stem + ".calibration.json")
+    side = sidecar_path(path)
     text = corrected_urdf(cal, add_frame)
     atomic_write(path, text.decode("utf-8"))
     atomic_write(side, json.dumps(sidecar(cal, path.name), indent=2) + "\n")
@@ -277,7 +283,7 @@ def load_calibration(urdf: str | Path, sidecar: str | Path | None = None) -> Cal
         RobotError: the URDF cannot be loaded or lacks the sidecar's tip.
     """
     urdf = Path(urdf)
-    path = Path(sidecar) if sidecar is not None else urdf.with_name(urdf.stem + ".calibration.json")
+    path = Path(sidecar) if sidecar is not None else sidecar_path(urdf)
     try:
         side = json.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
