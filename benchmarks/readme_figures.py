@@ -6,6 +6,7 @@ Usage: python benchmarks/readme_figures.py [--out benchmarks/figures/diagnose_co
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 from pathlib import Path
 
 import pincal
@@ -24,10 +25,12 @@ def main() -> None:
     truth, fit, _ = pincal.simulate(robot, n_fit=80, n_test=1, seed=0)
     ext = Extension.parse(robot, "joint_compliance:shoulder_lift_joint")
     truth = hide_effect(truth, ext, fit.q, 0.5e-3, seed=0)
+    # a real elastic joint sags under its load: link angle = motor angle - τ/K, c = -1/K < 0
+    truth = replace(truth, effect=-abs(truth.effect))
     fit = truth.measure(fit.q, 3e-5, None, seed=10)
     result = diagnose(robot, fit)
     print(result.summary())
-    print(f"hidden compliance {truth.effect[0]:.4g} rad/N·m")
+    print(f"hidden compliance {truth.effect[0]:.4g} rad/N·m (K = {-1 / truth.effect[0]:.4g} N·m/rad)")
     print(f"plot written to {plot_diagnosis(result, fit, args.out)}")
 
 

@@ -53,12 +53,13 @@ from typing import Any, TypeVar  # noqa: E402
 
 import numpy as np  # noqa: E402
 import pinocchio as pin  # noqa: E402
-from identification_scaling import FIGURE, load_tiago, plot, scaling  # noqa: E402
+from identification_scaling import FIGURE, TIAGO_TIP, load_tiago, plot, scaling  # noqa: E402
 
 import pincal  # noqa: E402
-from pincal.data import Dataset, atomic_write, read_table  # noqa: E402
-from pincal.diagnose import Diagnosis, diagnose  # noqa: E402
-from pincal.selection import cross_validate_selection, select_parameters  # noqa: E402
+from pincal.data import Dataset, atomic_write, read_table, write_csv  # noqa: E402
+from pincal.outliers import THRESHOLD  # noqa: E402
+from pincal.registration import quaternions  # noqa: E402
+from pincal.report import choice_lines  # noqa: E402
 
 T = TypeVar("T")
 #: FIGAROH on TIAGo (train / validation RMS [mm]) and its identification step [s], this machine kind.
@@ -69,8 +70,6 @@ SCALING_REPEAT = 5
 #: UR10e minus UR10 nominal DH lengths [m] (Universal Robots' published tables: d4 0.17415 vs 0.163941,
 #: d5 0.11985 vs 0.1157).
 UR10E_MINUS_UR10 = {"d4": 0.17415 - 0.163941, "d5": 0.11985 - 0.1157}
-#: For cross-validation and diagnose: each fold fits what its poses identify.
-CV_OPTIONS: dict[str, Any] = {"partial": True}
 
 
 @dataclass
@@ -85,6 +84,7 @@ class Row:
     held_by: str
     anchor: str
     seconds: float
+    command: str = ""
 
 
 #: Median CPU time [s] of the last call of :func:`timed` (this process only: robust to other load).
@@ -102,10 +102,6 @@ def timed(repeat: int, fn: Callable[..., T], *args: Any, **kwargs: Any) -> tuple
     assert result is not None
     LAST_CPU[0] = statistics.median(cpu)
     return result, statistics.median(times)
-
-
-def _quaternions(rotations: list[np.ndarray]) -> np.ndarray:
-    return np.array([pin.Quaternion(r).coeffs()[[3, 0, 1, 2]] for r in rotations])
 
 
 def load_tiago_data(folder: Path) -> tuple[pincal.Robot, Dataset, Dataset]:
@@ -126,7 +122,7 @@ def load_ur10(folder: Path) -> tuple[pincal.Robot, Dataset]:
     cols = [*robot.joint_names, "x1", "y1", "z1", "phix1", "phiy1", "phiz1"]
     values = read_table(folder / "calibration.csv", cols, "the joints, x1,y1,z1 and phix1,phiy1,phiz1")
     rotations = [pin.rpy.rpyToMatrix(*rpy) for rpy in values[:, -3:]]
-    return robot, Dataset(robot.joint_names, values[:, :6], values[:, 6:9], _quaternions(rotations))
+    return robot, Dataset(robot.joint_names, values[:, :6], values[:, 6:9], quaternions(np.array(rotations)))
 
 
 def load_panda(folder: Path) -> tuple[pincal.Robot, Dataset]:
@@ -137,7 +133,7 @@ def load_panda(folder: Path) -> tuple[pincal.Robot, Dataset]:
     values = read_table(folder / "calib_data_converted.csv", cols, "q1..q7 and X_C_B_ij")
     poses = values[:, 7:].reshape(-1, 3, 4)
     return robot, Dataset(
-        robot.joint_names, values[:, :7], poses[:, :, 3].copy(), _quaternions(list(poses[:, :, :3]))
+        robot.joint_names, values[:, :7], poses[:, :, 3].copy(), quaternions(poses[:, :, :3])
     )
 
 
@@ -161,9 +157,12 @@ def values(cal: pincal.Calibration, names: tuple[str, ...]) -> str:
     return ", ".join(parts)
 
 
-def diagnosis_line(diag: Diagnosis) -> str:
-    """What ``diagnose`` named, with its cross-validated gain."""
-    return f"{diag.summary()} [gain {diag.gain:.2f}]"
+def choice_notes(cal: pincal.Calibration, data: Dataset, out: list[str], label: str) -> None:
+    """What ``pincal calibrate`` printed about its choice, indented (the same lines)."""
+    out.append(f"  {label}:")
+    out.extend(f"    {line}" for line in choice_lines(cal, data))
+    if cal.choice is not None and cal.choice.params is not None:
+        out.append(f"    values: {values(cal, cal.choice.params)}")
 
 
 def bench_tiago(folder: Path, repeat: int, out: list[str]) -> tuple[list[Row], dict[str, Any]]:
@@ -172,101 +171,46 @@ def bench_tiago(folder: Path, repeat: int, out: list[str]) -> tuple[list[Row], d
     name = "tiago_qualisys"
     rows: list[Row] = []
     details: dict[str, Any] = {}
-
-    def fit(model: str, **options: Any) -> tuple[pincal.Calibration, float]:
-        return timed(repeat, pincal.calibrate, robot, train, model, test=val, **options)
-
-    def row(label: str, cal: pincal.Calibration, seconds: float, anchor: str) -> Row:
-        assert cal.test_after is not None
-        return Row(
-            name,
-            label,
-            cal.identifiability.n_identifiable,
-            cal.train_after.rms_mm,
-            cal.test_after.rms_mm,
-            "validation",
-            anchor,
-            seconds,
-        )
-
     fig = {k: f"FIGAROH {a:.2f} / {b:.2f}" for k, (a, b) in FIGAROH.items()}
-    reg, t = fit("placements", params=[])
-    rows.append(row("registration only", reg, t, fig["registration"]))
-    off, t_off = fit("offsets")
-    cpu_off = LAST_CPU[0]
-    rows.append(row("offsets", off, t_off, fig["offsets"]))
-    full, t_full = fit("placements")
-    cpu_full = LAST_CPU[0]
-    rows.append(row("placements, all", full, t_full, fig["full"]))
-    selections = {}
-    for model in ("placements", "poe", "mdh"):
-        sel, t_sel = timed(repeat, select_parameters, robot, train, model)
-        cal, t_cal = fit(model, params=list(sel.chosen))
-        selections[model] = sel
-        if model == "placements":
-            cal_sel = cal
-        mark = " *" if model == "placements" else ""
-        rows.append(row(f"{model}, selected{mark}", cal, t_sel + t_cal, fig["full"]))
-        details[f"selection_{model}"] = sel.to_dict() | {"train_rms_mm": cal.train_after.rms_mm}
-    chosen = list(selections["placements"].chosen)
-    diag = diagnose(robot, train, "placements", params=chosen, **CV_OPTIONS)
-    details["diagnose"] = diag.to_dict()
-    if diag.cause is not None:
-        ext, t_ext = fit("placements", params=chosen, extension=diag.cause.extension)
-        rows.append(row(f"placements, selected * + {diag.cause.extension.label}", ext, t_ext, "-"))
-
-    n = len(train)
-    loo = {
-        "registration only": pincal.cross_validate(
-            robot, train, "placements", folds=n, params=[], **CV_OPTIONS
-        ),
-        "offsets": pincal.cross_validate(robot, train, "offsets", folds=n, **CV_OPTIONS),
-        "placements, all": pincal.cross_validate(robot, train, "placements", folds=n, **CV_OPTIONS),
+    base = f"pincal calibrate {folder}/tiago_48_schunk.urdf train.csv --tip {TIAGO_TIP} --test validation.csv"
+    runs = [
+        ("registration only", dict(params=[]), "registration", "(API: params=[])"),
+        ("offsets", dict(model="offsets", params="all"), "offsets", "--model offsets --params all"),
+        ("placements, all", dict(params="all"), "full", "--params all"),
+        ("placements, auto *", {}, "full", ""),
+        ("poe, auto", dict(model="poe"), "full", "--model poe"),
+        ("mdh, auto", dict(model="mdh"), "full", "--model mdh"),
+        ("placements, auto + extend auto", dict(extension="auto"), "-", "--extend auto"),
+    ]
+    timing: dict[str, float] = {}
+    for label, options, anchor, flags in runs:
+        options = {"params": "auto", "outliers": THRESHOLD, **options}
+        n = 1 if options.get("extension") == "auto" else repeat
+        cal, seconds = timed(n, pincal.calibrate, robot, train, test=val, **options)
+        timing[label] = seconds
+        assert cal.test_after is not None
+        rows.append(
+            Row(name, label, cal.identifiability.n_identifiable, cal.train_after.rms_mm,
+                cal.test_after.rms_mm, "validation", fig.get(anchor, "-"), seconds, f"{base} {flags}".strip())
+        )  # fmt: skip
+        if label.startswith("placements, auto"):
+            choice_notes(cal, train, out, label)
+            details[label] = pincal.report_dict(cal, train)
+    out[:0] = [f"{name}: {len(train)} training poses, {len(val)} validation poses (another day), point 1"]
+    bare = {  # the identification alone: no outlier screen (it leaves no TIAGo pose out)
+        "offsets": timed(repeat, pincal.calibrate, robot, train, "offsets")[1],
+        "placements, all": timed(repeat, pincal.calibrate, robot, train, "placements")[1],
     }
-    nested = cross_validate_selection(robot, train, "placements", folds=n, **CV_OPTIONS)
-    details["training_loo_rms_mm"] = {k: v.after.rms_mm for k, v in loo.items()} | {
-        "placements, selected (nested)": nested.after.rms_mm
-    }
-
-    out.append(f"{name}: {n} training poses, {len(val)} validation poses (another day), point 1")
-    sel = selections["placements"]
+    ratio_off = FIGAROH_SECONDS["offsets"] / bare["offsets"]
+    ratio_full = FIGAROH_SECONDS["full"] / bare["placements, all"]
     out.append(
-        f"  selection on the training poses only (leave-one-out, linearised): {len(sel.chosen)} of "
-        f"{len(sel.path) - 1} placement parameters, CV RMS {sel.path[0].cv_rms_mm:.2f} -> "
-        f"{sel.cv_rms_mm:.2f} mm (all {len(sel.path) - 1}: {sel.path[-1].cv_rms_mm:.2f} mm; the shortest "
-        f"path prefix within {sel.min_gain:.0%} of the lowest)"
+        f"  identification alone (calibrate without the outlier screen, a robust refit that the rows' "
+        f"times include), median of {repeat}: offsets {bare['offsets']:.3f} s, {ratio_off:.1f}x faster than "
+        f"FIGAROH's {FIGAROH_SECONDS['offsets']} s; placements, all {bare['placements, all']:.3f} s, "
+        f"{ratio_full:.1f}x faster than FIGAROH's {FIGAROH_SECONDS['full']} s"
     )
-    out.append(f"    chosen: {values(cal_sel, sel.chosen)}")
-    for model in ("poe", "mdh"):
-        s = selections[model]
-        out.append(f"    {model}: {len(s.chosen)} parameters, CV RMS {s.cv_rms_mm:.2f} mm")
-    lowest = min(selections, key=lambda m: selections[m].cv_rms_mm)
-    out.append(f"    lowest training CV: {lowest}; * is placements, pincal's default, chosen before any fit")
-    out.append(
-        "  leave-one-out on the training poses: "
-        + ", ".join(f"{k} {v:.2f}" for k, v in details["training_loo_rms_mm"].items())
-        + " mm"
-    )
-    out.append(f"  diagnose (baseline: placements, selected; 5-fold CV): {diagnosis_line(diag)}")
-    ratio_off, ratio_full = FIGAROH_SECONDS["offsets"] / t_off, FIGAROH_SECONDS["full"] / t_full
-    out.append(
-        f"  identification (calibrate), median of {repeat}: offsets {t_off:.3f} s wall / {cpu_off:.3f} s "
-        f"CPU, {ratio_off:.1f}x faster than FIGAROH's {FIGAROH_SECONDS['offsets']} s"
-    )
-    out.append(
-        f"    placements ({full.identifiability.n_identifiable} identified; FIGAROH's full model: 30) "
-        f"{t_full:.3f} s wall / {cpu_full:.3f} s CPU, {ratio_full:.1f}x faster than FIGAROH's "
-        f"{FIGAROH_SECONDS['full']} s"
-    )
-    details["timing"] = {
-        "offsets_s": t_off,
-        "placements_s": t_full,
-        "offsets_cpu_s": cpu_off,
-        "placements_cpu_s": cpu_full,
-        "figaroh_s": FIGAROH_SECONDS,
-        "speedup_offsets": ratio_off,
-        "speedup_placements": ratio_full,
-    }
+    timing |= {f"{k}, no outlier screen": v for k, v in bare.items()}
+    details["timing"] = timing | {"figaroh_s": FIGAROH_SECONDS}
     return rows, details
 
 
@@ -280,134 +224,63 @@ def bench_cv(
     repeat: int,
     anchor: str,
     out: list[str],
+    command: str,
     models: tuple[str, ...] = ("offsets",),
 ) -> tuple[list[Row], dict[str, Any]]:
-    """A dataset judged by K-fold cross-validation over its poses."""
+    """A dataset judged by K-fold cross-validation over its poses: every row is ``pincal
+    calibrate`` with ``--nested yes --folds K`` (the choice re-run on each fold), except the
+    ``--extend auto`` row, judged by its diagnosis' cross-validation of the chosen model."""
     by = "leave-one-out" if folds == len(data) else f"{folds}-fold"
     rows: list[Row] = []
     details: dict[str, Any] = {}
-
-    def add(label: str, cal: pincal.Calibration, held: float, seconds: float, how: str = by) -> None:
-        rows.append(
-            Row(
-                name,
-                label,
-                cal.identifiability.n_identifiable,
-                cal.train_after.rms_mm,
-                held,
-                how,
-                anchor,
-                seconds,
+    base = f"{command} --model {model}" + (f" --measure {measure}" if measure else "")
+    runs = [(f"{m}, all", m, dict(params="all"), "--params all") for m in models]
+    runs = [("registration only", model, dict(params=[]), "(API: params=[])"), *runs]
+    runs += [(f"{model}, all", model, dict(params="all"), "--params all"), (f"{model}, auto", model, {}, "")]
+    for label, mdl, options, flags in runs:
+        options = {"params": "auto", "outliers": THRESHOLD, "folds": folds, **options}
+        cal, seconds = timed(repeat, pincal.calibrate, robot, data, mdl, measure, **options)
+        judged = pincal.calibrate(robot, data, mdl, measure, **options, nested=True)
+        assert judged.choice is not None and judged.choice.nested is not None
+        flags = f"{base.replace(f'--model {model}', f'--model {mdl}')} --nested yes --folds {folds} {flags}"
+        held = judged.choice.nested.after
+        rows.append(Row(name, label, cal.identifiability.n_identifiable, cal.train_after.rms_mm, held.rms_mm,
+                        f"{by}, nested", anchor, seconds, flags.strip()))  # fmt: skip
+        details[label] = {"held_out": held.to_dict(), "train": cal.train_after.to_dict()}
+        if label.endswith("auto"):
+            choice_notes(cal, data, out, label)
+    diag_folds = 7 if measure == "distance" else 5
+    ext, seconds = timed(1, pincal.calibrate, robot, data, model, measure, params="auto", extension="auto",
+                         outliers=THRESHOLD, folds=diag_folds)  # fmt: skip
+    assert ext.choice is not None
+    choice_notes(ext, data, out, f"{model}, auto + extend auto")
+    if ext.extension is not None:
+        chosen = pincal.cross_validate(robot, data, model, measure, diag_folds, params=ext.choice.params,
+                                       extension=ext.extension, partial=True)  # fmt: skip
+        held_by = f"{diag_folds}-fold, chosen model"
+        rows.append(Row(name, f"{model}, auto + {ext.extension.label}", ext.identifiability.n_identifiable,
+                        ext.train_after.rms_mm, chosen.after.rms_mm, held_by, anchor,
+                        seconds, f"{base} --extend auto --folds {diag_folds}"))  # fmt: skip
+        details["extended"] = {"cause": ext.extension.label, "cv": chosen.after.to_dict(),
+                               "cv_urdf": chosen.urdf.to_dict()}  # fmt: skip
+        if measure == "distance":
+            urdf, after = chosen.urdf.mean_mm, chosen.after.mean_mm
+            out.append(
+                f"  held-out mean |distance error| ({diag_folds}-fold, the chosen model): URDF as is "
+                f"{urdf:.3f} mm -> {after:.3f} mm ({urdf / after:.2f}x; the paper: 3.5x, 2.96 -> 0.62 mm "
+                "on its 16 test pairs)"
             )
-        )
-
-    reg, t = timed(repeat, pincal.calibrate, robot, data, model, measure, params=[])
-    cv_reg = pincal.cross_validate(robot, data, model, measure, folds=folds, params=[], **CV_OPTIONS)
-    add(
-        "registration only" if measure != "distance" else "nominal, tool point fitted",
-        reg,
-        cv_reg.after.rms_mm,
-        t,
-    )
-    for other in models:
-        cal, t = timed(repeat, pincal.calibrate, robot, data, other, measure)
-        add(
-            other,
-            cal,
-            pincal.cross_validate(robot, data, other, measure, folds=folds, **CV_OPTIONS).after.rms_mm,
-            t,
-        )
-    full, t = timed(repeat, pincal.calibrate, robot, data, model, measure)
-    cv_full = pincal.cross_validate(robot, data, model, measure, folds=folds, **CV_OPTIONS)
-    add(f"{model}, all", full, cv_full.after.rms_mm, t)
-    sel, t_sel = timed(repeat, select_parameters, robot, data, model, measure)
-    cal, t_cal = timed(repeat, pincal.calibrate, robot, data, model, measure, params=list(sel.chosen))
-    nested = cross_validate_selection(robot, data, model, measure, folds=folds, **CV_OPTIONS)
-    add(f"{model}, selected", cal, nested.after.rms_mm, t_sel + t_cal, f"{by}, nested")
-    diag = diagnose(
-        robot,
-        data,
-        model,
-        measure,
-        folds=7 if measure == "distance" else 5,
-        params=list(sel.chosen),
-        **CV_OPTIONS,
-    )
-    if diag.cause is not None:
-        ext, t_ext = timed(
-            repeat,
-            pincal.calibrate,
-            robot,
-            data,
-            model,
-            measure,
-            params=list(sel.chosen),
-            extension=diag.cause.extension,
-            **CV_OPTIONS,
-        )
-        add(
-            f"{model}, selected + {diag.cause.extension.label}",
-            ext,
-            diag.extended_cv_rms_mm,
-            t_ext,
-            f"{diag.folds}-fold (diagnose)",
-        )
-
-    out.append(
-        f"{name}: {len(data)} poses, {measure or ('pose' if data.has_orientation else 'position')} data, "
-        f"judged by {by} cross-validation"
-    )
-    if data.has_orientation:
-        rot = [c.train_after.rot_rms_mrad for c in (reg, full, cal)]
-        out.append(
-            f"  orientation RMS on the fitted poses: registration only {rot[0]:.2f}, {model} all "
-            f"{rot[1]:.2f}, selected {rot[2]:.2f} mrad"
-        )
-    out.append(
-        f"  selection (leave-one-out, linearised): {len(sel.chosen)} of {len(sel.path) - 1} {model} "
-        f"parameters, CV RMS {sel.path[0].cv_rms_mm:.2f} -> {sel.cv_rms_mm:.2f} mm"
-    )
-    out.append(f"    chosen: {values(cal, sel.chosen)}")
-    if name == "ur10_camera":
-        out.append(
-            "    a UR10e's nominal d4 and d5 exceed the UR10's by "
-            f"{UR10E_MINUS_UR10['d4'] * 1e3:.2f} and {UR10E_MINUS_UR10['d5'] * 1e3:.2f} mm "
-            "(shoulder_lift_joint.ty and wrist_2_joint.tz move those lengths)"
-        )
-    out.append(f"  diagnose (baseline: {model}, selected): {diagnosis_line(diag)}")
-    details.update(
-        selection=sel.to_dict(), diagnose=diag.to_dict(), nested_chosen=[list(c) for c in nested.chosen]
-    )
-    if measure == "distance":
-        urdf = cv_full.urdf.mean_mm
-        details["mean_abs_distance_error_mm"] = {
-            "urdf": urdf,
-            "all": cv_full.after.mean_mm,
-            "selected_nested": nested.after.mean_mm,
-        }
-        line = (
-            f"  held-out mean |distance error|: URDF as is {urdf:.3f} mm -> {model} all "
-            f"{cv_full.after.mean_mm:.3f} ({urdf / cv_full.after.mean_mm:.2f}x), selected (nested) "
-            f"{nested.after.mean_mm:.3f} ({urdf / nested.after.mean_mm:.2f}x)"
-        )
-        if diag.cause is not None:
-            ext_cv = pincal.cross_validate(
-                robot,
-                data,
-                model,
-                measure,
-                folds=folds,
-                params=list(sel.chosen),
-                extension=diag.cause.extension,
-                **CV_OPTIONS,
-            )
-            details["mean_abs_distance_error_mm"]["selected_extended"] = ext_cv.after.mean_mm
-            line += (
-                f", selected + {diag.cause.extension.label} {ext_cv.after.mean_mm:.3f} "
-                f"({urdf / ext_cv.after.mean_mm:.2f}x)"
-            )
-        out.append(line + "; the paper: 3.5x (2.96 -> 0.62 mm on its 16 test pairs)")
+    details["report_auto_extend"] = pincal.report_dict(ext, data)
+    kind = measure or ("pose" if data.has_orientation else "position")
+    out[:0] = [f"{name}: {len(data)} poses, {kind} data, judged by {by} cross-validation"]
     return rows, details
+
+
+def export(folder: Path | None, name: str, data: Dataset) -> None:
+    """Write ``data`` as a pincal CSV into ``folder`` (nothing when None)."""
+    if folder is not None:
+        folder.mkdir(parents=True, exist_ok=True)
+        write_csv(folder / name, data)
 
 
 def format_table(rows: list[Row]) -> str:
@@ -452,6 +325,12 @@ def main(argv: list[str] | None = None) -> None:
         "--scaling-plot", type=Path, default=FIGURE, metavar="PNG", help="where to write the plot"
     )
     parser.add_argument("--no-scaling", action="store_true", help="skip the scaling run")
+    parser.add_argument(
+        "--export",
+        type=Path,
+        metavar="DIR",
+        help="also write the UR10, Panda and Gao data as pincal CSVs here, for the printed commands",
+    )
     args = parser.parse_args(argv)
     if not args.datasets.is_dir():
         parser.error(f"{args.datasets} is not a folder")
@@ -461,30 +340,47 @@ def main(argv: list[str] | None = None) -> None:
     start = time.perf_counter()
 
     notes: list[str] = []
-    rows, details = bench_tiago(args.datasets / "tiago_qualisys", args.repeat, notes)
+    sections: list[list[str]] = [[] for _ in range(4)]
+    rows, details = bench_tiago(args.datasets / "tiago_qualisys", args.repeat, sections[0])
     results: dict[str, Any] = {"tiago_qualisys": details}
+    exported = args.export or Path("EXPORT")
     robot, data = load_ur10(args.datasets / "ur10_camera")
     new, results["ur10_camera"] = bench_cv(
-        "ur10_camera", robot, data, "placements", None, len(data), args.repeat, "none published", notes
-    )
+        "ur10_camera", robot, data, "placements", None, len(data), args.repeat, "none published", sections[1],
+        f"pincal calibrate ur10 {exported}/ur10_camera.csv --tip wrist_3_link",
+    )  # fmt: skip
     rows += new
+    sections[1].append(
+        "  a UR10e's nominal d4 and d5 exceed the UR10's by "
+        f"{UR10E_MINUS_UR10['d4'] * 1e3:.2f} and {UR10E_MINUS_UR10['d5'] * 1e3:.2f} mm "
+        "(shoulder_lift_joint.ty and wrist_2_joint.tz move those lengths)"
+    )
+    export(args.export, "ur10_camera.csv", data)
     robot, data = load_panda(args.datasets / "panda_eye_in_hand")
     new, results["panda_eye_in_hand"] = bench_cv(
-        "panda_eye_in_hand", robot, data, "placements", None, 10, args.repeat, "none published", notes
-    )
+        "panda_eye_in_hand", robot, data, "placements", None, 10, args.repeat, "none published", sections[2],
+        f"pincal calibrate panda {exported}/panda_eye_in_hand.csv --tip panda_link8",
+    )  # fmt: skip
     rows += new
+    export(args.export, "panda_eye_in_hand.csv", data)
     robot, data, source = load_gao(gao_path)
     new, results["gao2013"] = bench_cv(
-        "gao2013", robot, data, "poe", "distance", 7, args.repeat, "paper: 3.5x on URDF", notes, models=()
-    )
-    results["gao2013"]["source"] = source
+        "gao2013", robot, data, "poe", "distance", 7, args.repeat, "paper: 3.5x on URDF", sections[3],
+        f"pincal calibrate mrres5 {exported}/gao2013.csv", models=(),
+    )  # fmt: skip
     rows += new
+    export(args.export, "gao2013.csv", data)
+    notes = [line for section in sections for line in section]
+    results["gao2013"]["source"] = source
 
     print(
         f"pincal {pincal.__version__}: real-data benchmarks, {os.environ['OPENBLAS_NUM_THREADS']} BLAS "
         f"thread, times are medians of {args.repeat}"
     )
     print(format_table(rows))
+    print("commands (the pincal command line that produces each row's model and held-out figure):")
+    for r in rows:
+        print(f"  {r.dataset} / {r.model}: {r.command}")
     print(
         "params: identified parameters, registration and tool included. RMS of the 3-D position error, "
         "distances for gao2013."
@@ -498,7 +394,7 @@ def main(argv: list[str] | None = None) -> None:
         tiago = load_tiago(args.datasets / "tiago_qualisys" / "tiago_48_schunk.urdf")
         robots = {"ur5": pincal.load_robot("ur5"), "panda": pincal.load_robot("panda"), "tiago": tiago}
         scaling_records = scaling(robots, repeat=SCALING_REPEAT)
-        t_full = results["tiago_qualisys"]["timing"]["placements_s"]
+        t_full = results["tiago_qualisys"]["timing"]["placements, auto *"]
         marks = [
             {"label": "pincal, TIAGo real data (37 poses)", "poses": 37, "seconds": t_full, "marker": "s"},
             {

@@ -9,7 +9,9 @@ Load a robot, read or simulate measurements, calibrate, read the report::
     print(pincal.summary(cal))
 """
 
+from .calibration import Calibration
 from .checks import check_columns, check_limits, check_scale
+from .choice import ModelChoice
 from .compensate import Compensation, compensate_program, write_program
 from .crossval import CrossValidation, cross_validate
 from .data import Dataset, Targets, read_csv, read_program, write_csv
@@ -24,6 +26,7 @@ from .mdh import MdhModel, MdhTable, mdh_table
 from .measurements import Measurement, Problem, all_pairs, gao_pairs
 from .models import MODELS, Model, OffsetsModel, PlacementsModel, PoeModel, make_model
 from .outliers import find_outliers, pose_scores
+from .pipeline import calibrate
 from .planning import Design, Plan, candidate_poses, plan_poses, write_poses
 from .plots import plot_diagnosis
 from .report import report_dict, report_json, summary
@@ -36,7 +39,6 @@ from .selection import (
     select_parameters,
 )
 from .simulate import TrueRobot, hide_effect, random_truth, simulate
-from .solver import Calibration, calibrate
 from .tool import ToolCalibration, calibrate_tool, read_flange_poses
 from .twists import Twists, chain_twists, gao_k, left_jacobian, nominal_twists, poe_forward
 from .urdf_writer import CalibratedRobot, corrected_urdf, load_calibration, write_corrected_urdf
@@ -65,6 +67,7 @@ __all__ = [
     "MdhTable",
     "Measurement",
     "Model",
+    "ModelChoice",
     "NotSupportedError",
     "OffsetsModel",
     "PincalError",

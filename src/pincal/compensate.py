@@ -32,6 +32,10 @@ from .urdf_writer import CalibratedRobot
 
 STATUSES = ("ok", "unreachable", "singular")
 
+#: What a search found: commands, position [m] and rotation [rad] errors, iterations,
+#: convergence, and σmin/σmax of the task Jacobian at the start.
+_Found = tuple[np.ndarray, float, float, int, bool, float]
+
 
 @dataclass(frozen=True, eq=False)
 class Compensation:
@@ -73,7 +77,7 @@ class Compensation:
 
 def _solve(
     cal: CalibratedRobot, target: pin.SE3, q: np.ndarray, task: str, weight: float, opts: dict[str, float]
-) -> tuple[np.ndarray, float, float, int, bool, float]:
+) -> _Found:
     """Damped least squares from ``q``: the best commands met, their position [m] and rotation
     [rad] errors, iterations, convergence, and σmin/σmax of the task Jacobian at the start."""
     model, fid = cal.tool_frame
@@ -150,30 +154,14 @@ def compensate_program(
     robot = calibrated.robot
     cartesian = isinstance(program, Targets)
     n_rows = len(program)
-    q_in = np.zeros((n_rows, robot.n_joints)) if cartesian else np.atleast_2d(np.asarray(program, float))
-    if nominal.joint_names != robot.joint_names or q_in.shape[1] != robot.n_joints:
-        raise DataError(
-            f"the program and the nominal robot must have the calibration's joints {robot.joint_names}"
-        )
-    oriented = program.rotations is not None if isinstance(program, Targets) else calibrated.measure == "pose"
-    default = "pose" if oriented else "position"
-    task = task or (default if robot.n_joints >= 6 else "position")
-    if task not in ("pose", "position"):
-        raise DataError(f"unknown task {task!r}: use pose or position")
-    if task == "pose" and robot.n_joints < 6:
-        raise NotSupportedError(
-            f"a {robot.n_joints}-joint chain cannot follow 6-D poses: use the position task"
-        )
+    q_in = _program_commands(nominal, calibrated, program, n_rows)
+    task = _choose_task(calibrated, program, task)
     opts = {"tol": tol, "rot_tol": rot_tol, "max_iter": max_iter, "damping": damping}
     rng = np.random.default_rng(seed)
     out, start = q_in.copy(), q_in.copy()
     pos_e, rot_e, iters = np.zeros(n_rows), np.zeros(n_rows), np.zeros(n_rows, dtype=int)
     status, messages = ["ok"] * n_rows, [""] * n_rows
     previous = robot.random_configurations(1, rng, 0.1)[0]
-
-    def cost(found: tuple) -> float:
-        return found[1] + rotation_weight * found[2]
-
     for i in range(n_rows):
         if cartesian:
             target, tries = program[i], [previous, *robot.random_configurations(restarts, rng, 0.1)]
@@ -183,38 +171,143 @@ def compensate_program(
             if outside:
                 status[i], messages[i] = "unreachable", f"the commands are beyond the limits of {outside}"
                 continue
-        best: tuple | None = None
-        for guess in tries:
-            found = _solve(calibrated, target, guess, task, rotation_weight, opts)
-            if best is None or found[4] or cost(found) < cost(best):
-                best, start[i] = found, guess
-            if found[4]:
-                break
-        q, pos_e[i], rot_e[i], iters[i], converged, ratio = best  # type: ignore[misc]
+        best, start[i] = _search(calibrated, target, tries, task, rotation_weight, opts)
+        q, pos_e[i], rot_e[i], iters[i], converged, ratio = best
         change = float(np.abs(q - start[i]).max())
-        off = f"{pos_e[i] * 1e3:.3f} mm" + (f", {rot_e[i] * 1e3:.3f} mrad" if task == "pose" else "")
         if converged and (cartesian or change <= max_change):
             out[i], previous = q, q
             continue
         out[i] = q if cartesian else out[i]
-        if converged:
-            status[i], messages[i] = (
-                "singular",
-                f"near a singularity: needs a joint change of {change:.3f} rad",
-            )
-        elif not cartesian and ratio < singular_rcond:
-            status[i], messages[i] = "singular", f"at a singularity (σmin/σmax {ratio:.1e}): {off} off"
-        else:
-            limit = _beyond(robot, q, strict=False)
-            why = (f"; {limit} at a joint limit" if limit else "") + (
-                f"; σmin/σmax {ratio:.1e} at the commands"
-                if not cartesian and ratio < 10 * singular_rcond
-                else ""
-            )
-            status[i], messages[i] = "unreachable", f"out of reach: the closest pose found is {off} off{why}"
+        off = f"{pos_e[i] * 1e3:.3f} mm" + (f", {rot_e[i] * 1e3:.3f} mrad" if task == "pose" else "")
+        status[i], messages[i] = _failure(robot, q, converged, change, ratio, off, cartesian, singular_rcond)
     return Compensation(
         robot.joint_names, task, start, out, tuple(status), pos_e, rot_e, iters, tuple(messages)
     )
+
+
+def _program_commands(
+    nominal: Robot, calibrated: CalibratedRobot, program: np.ndarray | Targets, n_rows: int
+) -> np.ndarray:
+    """The program's commands (N, n) [rad or m]: zeros for a Cartesian program.
+
+    Args:
+        nominal: the URDF the program was written for.
+        calibrated: the calibration.
+        program: joint commands (N, n) [rad or m], or :class:`Targets`.
+        n_rows: the program's number of rows.
+
+    Raises:
+        DataError: the joints differ between the robots or the program.
+    """
+    robot = calibrated.robot
+    if isinstance(program, Targets):
+        q_in = np.zeros((n_rows, robot.n_joints))
+    else:
+        q_in = np.atleast_2d(np.asarray(program, float))
+    if nominal.joint_names != robot.joint_names or q_in.shape[1] != robot.n_joints:
+        raise DataError(
+            f"the program and the nominal robot must have the calibration's joints {robot.joint_names}"
+        )
+    return q_in
+
+
+def _choose_task(calibrated: CalibratedRobot, program: np.ndarray | Targets, task: str | None) -> str:
+    """The task asked for, or the default: ``pose`` on 6+ joints when the targets are oriented.
+
+    Targets are oriented when a Cartesian program gives rotations, or, for a program of
+    commands, when the calibration was made from pose data.
+
+    Args:
+        calibrated: the calibration.
+        program: joint commands (N, n) [rad or m], or :class:`Targets`.
+        task: ``pose``, ``position`` or None for the default.
+
+    Raises:
+        DataError: an unknown task.
+        NotSupportedError: a pose task on a chain of fewer than 6 joints.
+    """
+    n_joints = calibrated.robot.n_joints
+    oriented = program.rotations is not None if isinstance(program, Targets) else calibrated.measure == "pose"
+    default = "pose" if oriented else "position"
+    task = task or (default if n_joints >= 6 else "position")
+    if task not in ("pose", "position"):
+        raise DataError(f"unknown task {task!r}: use pose or position")
+    if task == "pose" and n_joints < 6:
+        raise NotSupportedError(f"a {n_joints}-joint chain cannot follow 6-D poses: use the position task")
+    return task
+
+
+def _search(
+    cal: CalibratedRobot,
+    target: pin.SE3,
+    tries: list[np.ndarray],
+    task: str,
+    weight: float,
+    opts: dict[str, float],
+) -> tuple[_Found, np.ndarray]:
+    """The best :func:`_solve` result over the starting commands ``tries``, and its start.
+
+    The first converged search wins; otherwise the one of least ``position + weight · rotation``
+    error.
+
+    Args:
+        cal: the calibration.
+        target: the tool pose wanted in the base frame [m].
+        tries: starting commands (n,) [rad or m], in the order tried.
+        task: ``pose`` or ``position``.
+        weight: weight of orientation errors [m/rad].
+        opts: ``tol`` [m], ``rot_tol`` [rad], ``max_iter`` and ``damping`` [m] of :func:`_solve`.
+
+    Returns:
+        ``(q, position error [m], rotation error [rad], iterations, converged, σmin/σmax)`` of the
+        best search, and the commands it started from.
+    """
+
+    def cost(found: _Found) -> float:
+        return found[1] + weight * found[2]
+
+    origin = tries[0]
+    best = _solve(cal, target, origin, task, weight, opts)
+    for guess in tries[1:]:
+        if best[4]:  # converged: no need to try further
+            break
+        found = _solve(cal, target, guess, task, weight, opts)
+        if found[4] or cost(found) < cost(best):
+            best, origin = found, guess
+    return best, origin
+
+
+def _failure(
+    robot: Robot,
+    q: np.ndarray,
+    converged: bool,
+    change: float,
+    ratio: float,
+    off: str,
+    cartesian: bool,
+    singular_rcond: float,
+) -> tuple[str, str]:
+    """Status and message of a row not compensated.
+
+    Args:
+        robot: the calibrated chain.
+        q: the closest commands found (n,) [rad or m].
+        converged: whether the search reached the target.
+        change: largest joint change from the start [rad or m].
+        ratio: σmin/σmax of the task Jacobian at the start.
+        off: how far the closest pose found is from the target, in words (mm, mrad).
+        cartesian: whether the row is a Cartesian target (else a row of commands).
+        singular_rcond: σmin/σmax under which commands count as singular.
+    """
+    if converged:
+        return "singular", f"near a singularity: needs a joint change of {change:.3f} rad"
+    if not cartesian and ratio < singular_rcond:
+        return "singular", f"at a singularity (σmin/σmax {ratio:.1e}): {off} off"
+    limit = _beyond(robot, q, strict=False)
+    why = (f"; {limit} at a joint limit" if limit else "") + (
+        f"; σmin/σmax {ratio:.1e} at the commands" if not cartesian and ratio < 10 * singular_rcond else ""
+    )
+    return "unreachable", f"out of reach: the closest pose found is {off} off{why}"
 
 
 def _beyond(robot: Robot, q: np.ndarray, strict: bool) -> str:

@@ -14,12 +14,14 @@ from typing import Any
 
 import numpy as np
 
+from .calibration import Calibration
 from .data import Dataset
 from .errors import DataError
 from .evaluation import ErrorStats, pose_errors
 from .measurements import Problem, all_pairs
+from .models import Model
+from .pipeline import calibrate
 from .robots import Robot
-from .solver import Calibration, calibrate
 
 
 @dataclass(frozen=True)
@@ -78,7 +80,7 @@ def held_out_errors(cal: Calibration, data: Dataset, held: np.ndarray) -> list[n
 def cross_validate(
     robot: Robot,
     data: Dataset,
-    model: str = "placements",
+    model: str | Model = "placements",
     measure: str | None = None,
     folds: int = 7,
     seed: int = 0,

@@ -18,9 +18,9 @@ from .crossval import cross_validate
 from .data import Dataset
 from .evaluation import evaluate
 from .models import MODELS
+from .pipeline import calibrate
 from .robots import load_robot
 from .simulate import simulate
-from .solver import calibrate
 
 
 def gao2013_data() -> tuple[Dataset, np.ndarray]:

@@ -21,11 +21,12 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
+from .calibration import Calibration
 from .crossval import cross_validate
 from .data import Dataset
-from .effects import Extension, Payload, candidates
+from .effects import Extension, Payload, Stiffness, candidates, compliance_stiffness
+from .pipeline import calibrate
 from .robots import Robot
-from .solver import Calibration, calibrate
 
 #: The winner must beat the baseline's cross-validated RMS by at least this factor.
 MIN_GAIN = 1.1
@@ -42,16 +43,28 @@ class Candidate:
         cv_rms_mm: cross-validated RMS [mm].
         p_value: F-test of the extended fit on all poses against the baseline.
         calibration: the extended fit on all poses.
+        q: the data's commanded configurations (N, n), to read a compliance as a stiffness.
     """
 
     extension: Extension
     cv_rms_mm: float
     p_value: float
     calibration: Calibration = field(repr=False)
+    q: np.ndarray | None = field(default=None, repr=False, compare=False)
+
+    def stiffness(self, q: np.ndarray | None = None) -> Stiffness | None:
+        """A ``joint_compliance`` coefficient read as a stiffness over ``q`` (default: the
+        candidate's own), or None for other effects or without configurations."""
+        q = self.q if q is None else q
+        if self.extension.effect != "joint_compliance" or q is None:
+            return None
+        return compliance_stiffness(self.extension, float(self.calibration.effect_params[0]), q)
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready description."""
+        """JSON-ready description (with a ``stiffness`` for a joint compliance, given ``q``)."""
         ext = self.extension
+        stiffness = self.stiffness()
+        extra = {"stiffness": stiffness.to_dict()} if stiffness is not None else {}
         return {
             "effect": ext.effect,
             "joint": ext.joint,
@@ -62,6 +75,7 @@ class Candidate:
                 n: {"value": float(v), "unit": u}
                 for n, v, u in zip(ext.names, self.calibration.effect_params, ext.units)
             },
+            **extra,
         }
 
 
@@ -75,6 +89,7 @@ class Diagnosis:
         cause: the named cause, or None.
         candidates: every candidate, best first.
         folds: number of folds.
+        q: the data's commanded configurations (N, n), to read a compliance as a stiffness.
     """
 
     baseline: Calibration = field(repr=False)
@@ -82,6 +97,7 @@ class Diagnosis:
     cause: Candidate | None
     candidates: tuple[Candidate, ...]
     folds: int
+    q: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     @property
     def extended_cv_rms_mm(self) -> float:
@@ -104,7 +120,7 @@ class Diagnosis:
         ext, p = self.cause.extension, self.cause.calibration.effect_params
         unit = ext.units[0]
         if ext.effect == "joint_compliance":
-            what = f"{ext.joint} deflects under gravity: {p[0]:.3g} {unit}"
+            what = self._compliance(self.cause, unit)
         elif ext.effect == "gear_harmonic":
             amplitude = float(np.linalg.norm(p)) * 1e3
             what = (
@@ -122,6 +138,17 @@ class Diagnosis:
                 "between the two directions of its gravity load"
             )
         return f"{what}; held-out RMS {b:.3f} → {a:.3f} mm ({b / a:.1f}x, {self.folds}-fold CV)"
+
+    def _compliance(self, cause: Candidate, unit: str) -> str:
+        """A named compliance: its coefficient and what it means as a stiffness."""
+        joint, c = cause.extension.joint, float(cause.calibration.effect_params[0])
+        stiffness = cause.stiffness(self.q)
+        if stiffness is None:
+            return f"{joint}: error proportional to its gravity torque, c = {c:.3g} {unit}"
+        if stiffness.plausible:  # "sags under gravity: K = ..."
+            head, _, tail = stiffness.verdict.partition(": ")
+            return f"{joint} {head}: c = {c:.3g} {unit}, {tail}"
+        return f"{joint}: error proportional to its gravity torque, c = {c:.3g} {unit}; {stiffness.verdict}"
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON of ``contracts.md``."""
@@ -203,7 +230,7 @@ def diagnose(
         ].all():
             continue
         cv = cross_validate(robot, data, model, measure, folds, seed, extension=ext, **options)
-        judged.append(Candidate(ext, cv.after.rms_mm, _f_test(base, full, data), full))
+        judged.append(Candidate(ext, cv.after.rms_mm, _f_test(base, full, data), full, data.q))
         if progress is not None:
             progress(k + 1, len(pool), ext.label)
     judged.sort(key=lambda c: c.cv_rms_mm)
@@ -213,7 +240,7 @@ def diagnose(
         best = judged[0]
         if base_rms / best.cv_rms_mm >= MIN_GAIN and best.p_value < ALPHA / len(judged):
             cause = best
-    return Diagnosis(base, base_rms, cause, tuple(judged), folds)
+    return Diagnosis(base, base_rms, cause, tuple(judged), folds, data.q)
 
 
 def extended_calibration(diagnosis: Diagnosis) -> Calibration:

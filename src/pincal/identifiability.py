@@ -12,12 +12,15 @@ reason: no effect on the measurements, or the kept parameters that absorb it.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.linalg
 
+from .data import Dataset
 from .errors import IdentifiabilityError
+from .measurements import Problem
+from .registration import quaternions
 
 #: Singular values below ``RCOND · σ_max`` count as zero.
 RCOND = 1e-6
@@ -91,16 +94,17 @@ def analyse(
     kept = js[:, keep_local]
     sk = np.linalg.svd(kept, compute_uv=False)
     cond = float(sk[0] / sk[-1]) if sk[-1] > 0 else float("inf")
-    for local, idx in enumerate(cand):
-        if mask[idx]:
-            continue
-        col = js[:, local]
-        if np.linalg.norm(col) <= tol:
+    rest = np.array([local for local, idx in enumerate(cand) if not mask[idx]], dtype=int)
+    if rest.size:  # what each left-out column is made of, all in one least-squares solve
+        coefs = np.linalg.lstsq(kept, js[:, rest], rcond=None)[0]  # (kept, left out)
+        weights = np.abs(coefs) * np.linalg.norm(kept, axis=0)[:, None]
+    for j, local in enumerate(rest):
+        idx, size = cand[local], float(np.linalg.norm(js[:, local]))
+        if size <= tol:
             reasons[names[idx]] = "has no effect on these measurements"
             continue
-        coef, *_ = np.linalg.lstsq(kept, col, rcond=None)
-        weight = np.abs(coef) * np.linalg.norm(kept, axis=0)
-        top = [names[keep[k]] for k in np.argsort(-weight)[:3] if weight[k] > 1e-3 * np.linalg.norm(col)]
+        weight = weights[:, j]
+        top = [names[keep[k]] for k in np.argsort(-weight)[:3] if weight[k] > 1e-3 * size]
         reasons[names[idx]] = "absorbed by " + ", ".join(top) if top else "not identifiable from these poses"
     return Identifiability(mask, sv, cond, reasons)
 
@@ -148,3 +152,47 @@ def lost_parameters(
     share = np.sqrt(np.sum(blind**2, axis=0))
     order = np.argsort(-share)
     return rank_ref, [names[cand[keep[k]]] for k in order if share[k] > 0.2 * share[order[0]]]
+
+
+def check_rank(
+    problem: Problem,
+    theta: np.ndarray,
+    jacobian: np.ndarray,
+    scale: np.ndarray,
+    candidates: np.ndarray,
+    rcond: float,
+) -> int:
+    """How many parameters varied poses identify; an error if these poses identify fewer.
+
+    The reference is the same problem on random poses within the joint limits, measured exactly;
+    ``jacobian`` is the data's, at ``theta``.
+
+    Raises:
+        IdentifiabilityError: naming the parameters the data cannot see, and the likely cause.
+    """
+    robot, data = problem.model.robot, problem.data
+    n_ref = max(60, 2 * problem.n_params)
+    q_ref = robot.random_configurations(n_ref, np.random.default_rng(0), margin=0.05)
+    quats = np.tile([1.0, 0.0, 0.0, 0.0], (n_ref, 1)) if data.has_orientation else None
+    blank = Dataset(data.joint_names, q_ref, np.zeros((n_ref, 3)), quats)
+    meas = replace(problem.measurement, pairs=None)
+    points, rotations = Problem(problem.model, meas, blank, problem.extension).predict(theta)
+    exact = replace(blank, points=points, quaternions=None if quats is None else quaternions(rotations))
+    reference = Problem(problem.model, meas, exact, problem.extension)
+    rank, lost = lost_parameters(jacobian, reference.jacobian(theta), problem.names, scale, candidates, rcond)
+    if not lost or len(jacobian) <= rank:  # too few equations: the caller says so
+        return rank
+    span = np.ptp(data.q, axis=0)
+    still = [j for j, s, p in zip(robot.joint_names, span, robot.prismatic) if s < (1e-4 if p else 1e-3)]
+    if len(data) < 3 or len(still) == robot.n_joints:
+        cause = "all the poses are alike (no joint moves)"
+    elif still:
+        cause = f"joint(s) {', '.join(still)} never move"
+    else:
+        cause = f"{len(data)} poses do not vary the joints enough"
+    names = ", ".join(lost[:8]) + (f" and {len(lost) - 8} more" if len(lost) > 8 else "")
+    raise IdentifiabilityError(
+        f"the data cannot identify {names}, which varied poses would: {cause}. Measure poses that "
+        "move every joint over its range, fit fewer parameters (--model offsets), or pass "
+        "--partial to fit only what this data identifies"
+    )

@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from .candidates import candidate_poses
 from .data import Dataset, atomic_write
 from .effects import Extension
 from .errors import DataError, IdentifiabilityError
@@ -109,59 +110,6 @@ class Plan:
                 f"{d.model_rms_mm:15.4f}"
             )
         return "\n".join(lines)
-
-
-def candidate_poses(
-    robot: Robot,
-    n: int,
-    seed: int = 0,
-    margin: float = 0.05,
-    floor: float = 0.0,
-    clearance: float = 0.05,
-    tool: np.ndarray | None = None,
-    instrument: np.ndarray | None = None,
-    reach: float | None = None,
-) -> np.ndarray:
-    """``n`` random feasible configurations (n, n_joints) [rad or m].
-
-    Args:
-        robot: the robot.
-        n: number wanted.
-        seed: random seed.
-        margin: fraction of each joint range left out at both ends.
-        floor: height of the floor in the base frame [m].
-        clearance: every joint origin that moves, and the measured point, stay this far above it [m].
-        tool: the measured point on the tip (3,) [m] (default: the tip's origin).
-        instrument: the instrument's position in the base frame (3,) [m] (default: the base origin).
-        reach: the instrument's range [m] (default: unlimited).
-
-    Raises:
-        DataError: too few configurations are feasible.
-    """
-    rng = np.random.default_rng(seed)
-    point = np.zeros(3) if tool is None else np.asarray(tool, float)
-    centre = np.zeros(3) if instrument is None else np.asarray(instrument, float)
-    chain = Chain.nominal(robot)
-    kept: list[np.ndarray] = []
-    drawn = 0
-    while sum(len(k) for k in kept) < n and drawn < 200 * n:
-        q = robot.random_configurations(max(n, 100), rng, margin)
-        drawn += len(q)
-        frames = forward(chain, q)
-        tip = frames.tip_translation + frames.tip_rotation @ point
-        heights = frames.translations[:, :, 2]
-        moving = heights.std(axis=1) > 1e-9  # the joint origins a configuration can bring down
-        ok = np.all(heights[moving] >= floor + clearance, axis=0) & (tip[:, 2] >= floor + clearance)
-        if reach is not None:
-            ok &= np.linalg.norm(tip - centre, axis=1) <= reach
-        kept.append(q[ok])
-    out = np.concatenate(kept)
-    if len(out) < n:
-        raise DataError(
-            f"only {len(out)} of {drawn} random configurations are above the floor and within reach: "
-            "lower the clearance, widen the reach or ask for fewer candidates"
-        )
-    return out[:n]
 
 
 class _Rows:

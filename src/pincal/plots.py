@@ -9,15 +9,16 @@ the same after the model is extended.
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 import numpy as np
 
+from .calibration import Calibration
 from .data import Dataset
 from .diagnose import Diagnosis
 from .effects import gravity_torques
 from .errors import DataError
-from .solver import Calibration
 
 
 def _implied_joint_error(cal: Calibration, data: Dataset, joint: int) -> np.ndarray:
@@ -64,7 +65,7 @@ def plot_diagnosis(diagnosis: Diagnosis, data: Dataset, path: str | Path) -> Pat
     axes[0].plot(x[order], effect[order] * 1e3, "-", color="C3", label=f"identified {ext.effect}")
     axes[0].set_ylabel(f"{ext.joint} error [mrad]")
     axes[0].legend(fontsize=8)
-    fig.suptitle(diagnosis.summary(), fontsize=9)
+    fig.suptitle(textwrap.fill(diagnosis.summary(), 130), fontsize=9)
     fig.tight_layout()
     out = Path(path)
     fig.savefig(out, dpi=110)

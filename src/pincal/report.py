@@ -13,9 +13,11 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from .calibration import Calibration
+from .data import Dataset
+from .effects import compliance_stiffness
 from .evaluation import ErrorStats
 from .models import PoeModel
-from .solver import Calibration
 
 _TO_DISPLAY = {"m": (1e3, "mm"), "rad": (1e3, "mrad")}
 
@@ -48,8 +50,28 @@ def parameter_rows(cal: Calibration) -> list[dict[str, Any]]:
     return rows
 
 
-def report_dict(cal: Calibration) -> dict[str, Any]:
-    """The report of ``contracts.md`` (and more)."""
+def extension_dict(cal: Calibration, data: Dataset | None = None) -> dict[str, Any] | None:
+    """The extension identified with the geometry: its label, parameters and, for a joint
+    compliance with the fitted poses ``data`` given, the stiffness it implies."""
+    ext = cal.extension
+    if ext is None:
+        return None
+    out: dict[str, Any] = {
+        "effect": ext.effect,
+        "joint": ext.joint,
+        "label": ext.label,
+        "parameters": {
+            n: {"value": float(v), "unit": u} for n, v, u in zip(ext.names, cal.effect_params, ext.units)
+        },
+    }
+    if ext.effect == "joint_compliance" and data is not None:
+        out["stiffness"] = compliance_stiffness(ext, float(cal.effect_params[0]), data.q).to_dict()
+    return out
+
+
+def report_dict(cal: Calibration, data: Dataset | None = None) -> dict[str, Any]:
+    """The report of ``contracts.md`` (and more); ``data``: the fitted poses, for the stiffness a
+    compliance implies."""
 
     def pair(before: ErrorStats | None, after: ErrorStats | None, urdf: ErrorStats | None) -> Any:
         if before is None or after is None:
@@ -92,11 +114,13 @@ def report_dict(cal: Calibration) -> dict[str, Any]:
         "solver": {"jacobian_evaluations": cal.n_evaluations, "message": cal.message},
         "excluded_poses": [{"row": row, "residual_mm": size} for row, size in cal.excluded],
         "parameters": parameter_rows(cal),
+        "choice": None if cal.choice is None else cal.choice.to_dict(),
+        "extension": extension_dict(cal, data),
         **extra,
     }
 
 
-def report_json(cal: Calibration, **extra: Any) -> str:
+def report_json(cal: Calibration, data: Dataset | None = None, **extra: Any) -> str:
     """The report as JSON text (no NaN or infinity: those become null), with ``extra`` keys."""
 
     def clean(obj: Any) -> Any:
@@ -108,7 +132,7 @@ def report_json(cal: Calibration, **extra: Any) -> str:
             return [clean(v) for v in obj]
         return obj
 
-    return json.dumps(clean({**report_dict(cal), **extra}), indent=2) + "\n"
+    return json.dumps(clean({**report_dict(cal, data), **extra}), indent=2) + "\n"
 
 
 def _fmt(stats: ErrorStats | None) -> str:
@@ -124,8 +148,66 @@ def _row(label: str, *stats: ErrorStats | None) -> str:
     return f"  {label:10s} " + " ".join(f"{_fmt(s):>21s}" for s in stats)
 
 
-def summary(cal: Calibration) -> str:
-    """A readable before/after table and the identifiability summary."""
+def _names(names: tuple[str, ...], most: int = 10) -> str:
+    return ", ".join(names[:most]) + (f" and {len(names) - most} more" if len(names) > most else "")
+
+
+def choice_lines(cal: Calibration, data: Dataset | None = None) -> list[str]:
+    """What was chosen and why, a line or a few."""
+    choice, lines = cal.choice, list[str]()
+    if choice is None:
+        return lines
+    sel = choice.selection
+    if sel is not None:
+        n_all = len(sel.path) - 1
+        how = "by leave-one-out cross-validation on the fitted poses (linearised)"
+        if choice.params is None:
+            lines.append(
+                f"parameters: all {n_all} {sel.model} parameters kept {how}: CV RMS "
+                f"{sel.all_cv_rms_mm:.3f} mm, within {sel.keep_all:.0%} of the best subset's"
+            )
+        else:
+            lines.append(
+                f"parameters: {len(choice.params)} of {n_all} {sel.model} parameters chosen {how}: "
+                f"CV RMS {sel.cv_rms_mm:.3f} mm (all {n_all}: {sel.all_cv_rms_mm:.3f} mm)"
+            )
+            lines.append(f"  kept: {_names(choice.params)}")
+            lines.append(f"  left out (stay nominal): {_names(choice.left_out)}")
+    if choice.extension_mode == "auto":
+        diag = choice.diagnosis
+        if choice.extension is None or diag is None:
+            best = diag.candidates[0].extension.label if diag is not None and diag.candidates else "none"
+            lines.append(f"cause: none (the diagnosis' test passed no candidate; best {best})")
+        else:
+            lines.append(
+                f"cause: {choice.extension.label}, {choice.folds}-fold CV RMS "
+                f"{diag.baseline_cv_rms_mm:.3f} → {diag.extended_cv_rms_mm:.3f} mm (gain {diag.gain:.2f})"
+            )
+        if len(choice.rounds) > 1:
+            lines.append(
+                "  rounds: "
+                + "; ".join(
+                    f"{r.cause or 'none'} on {len(r.params or ()) or 'all'} parameters"
+                    f" ({r.extended_cv_rms_mm:.3f} mm)"
+                    for r in choice.rounds
+                )
+            )
+    ext = extension_dict(cal, data)
+    if ext is not None and "stiffness" in ext:
+        lines.append(f"  {ext['joint']}: {ext['stiffness']['verdict']}")
+    if choice.nested is not None:
+        cv = choice.nested
+        lines.append(
+            f"whole procedure, nested {cv.folds}-fold CV (the call re-run without each fold): held-out RMS "
+            f"{cv.after.rms_mm:.3f} mm (before {cv.before.rms_mm:.3f} mm)"
+        )
+    elif choice.params_mode == "auto" and choice.nested_note != "not asked for":
+        lines.append(f"nested cross-validation {choice.nested_note}")
+    return lines
+
+
+def summary(cal: Calibration, data: Dataset | None = None) -> str:
+    """A readable before/after table, the identifiability summary and what was chosen."""
     ident = cal.identifiability
     what = "abs. distance error over pairs" if cal.measurement.kind == "distance" else "position error"
     lines = [
@@ -143,4 +225,4 @@ def summary(cal: Calibration) -> str:
     if cal.excluded:
         rows = ", ".join(f"row {row} ({size:.3f} mm)" for row, size in cal.excluded)
         lines.append(f"outliers left out of the fit (residual far outside the others'): {rows}")
-    return "\n".join(lines)
+    return "\n".join(lines + choice_lines(cal, data))

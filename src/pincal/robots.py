@@ -194,16 +194,18 @@ def read_urdf_text(path: Path) -> str:
 
 def _deepest_body(model: pin.Model) -> str:
     """The body frame with the most joints between the base and it (the last such, on ties)."""
-
-    def depth(joint: int) -> int:
-        count = 0
-        while joint > 0:
-            joint, count = model.parents[joint], count + 1
-        return count
-
     bodies = [f for f in model.frames if f.type == pin.FrameType.BODY]
-    best = max(depth(f.parentJoint) for f in bodies)
-    return next(f.name for f in reversed(bodies) if depth(f.parentJoint) == best)
+    best = max(len(_joint_path(model, f.parentJoint)) for f in bodies)
+    return next(f.name for f in reversed(bodies) if len(_joint_path(model, f.parentJoint)) == best)
+
+
+def _joint_path(model: pin.Model, joint: int) -> list[int]:
+    """Ids of the joints from the base to ``joint`` (included), base first."""
+    path: list[int] = []
+    while joint > 0:
+        path.append(joint)
+        joint = model.parents[joint]
+    return path[::-1]
 
 
 @contextlib.contextmanager
@@ -263,17 +265,7 @@ def load_robot(
             raise RobotError(f"unknown robot {name!r}: give a .urdf path or one of {', '.join(BUNDLED)}")
         if not path.is_file():
             raise RobotError(f"URDF file not found: {path}")
-    text = read_urdf_text(path)
-    with _stderr_captured() as said:
-        try:
-            full = pin.buildModelFromXML(text)
-        except (RuntimeError, ValueError) as exc:
-            full, error = None, " ".join(str(exc).split())
-    if full is None:
-        detail = next((ln.strip() for ln in said() if ln.strip().lower().startswith("error")), "")
-        raise RobotError(
-            f"cannot load URDF {path}: {detail or error}: fix the URDF (check it with check_urdf)"
-        )
+    full = _parse_urdf(path)
     if tip is None:
         tip = _deepest_body(full)
     tip_id = _find_frame(full, tip)
@@ -281,28 +273,7 @@ def load_robot(
         raise RobotError(
             f"frame {tip!r} has no joint between the base and it: choose a tip on the arm with --tip"
         )
-
-    path_ids: list[int] = []
-    j = full.frames[tip_id].parentJoint
-    while j > 0:
-        path_ids.append(j)
-        j = full.parents[j]
-    path_ids.reverse()
-    wanted = set(joints) if joints is not None else None
-    if wanted is not None:
-        unknown = wanted - set(full.names[1:])
-        if unknown:
-            raise RobotError(f"the URDF has no joint named {', '.join(sorted(unknown))}")
-        off_path = wanted - {full.names[j] for j in path_ids}
-        if off_path:
-            raise RobotError(f"joint(s) {', '.join(sorted(off_path))} are not between the base and {tip!r}")
-    keep = [j for j in path_ids if wanted is None or full.names[j] in wanted]
-    for j in keep:
-        if full.joints[j].nv != 1:
-            raise RobotError(
-                f"joint {full.names[j]!r} is a {full.joints[j].shortname()}: "
-                "only revolute, continuous and prismatic joints can be calibrated"
-            )
+    keep = _actuated_joints(full, tip_id, tip, joints)
     q_ref = pin.neutral(full)
     for jname, value in (locked or {}).items():
         if not full.existJointName(jname):
@@ -314,18 +285,13 @@ def load_robot(
     tip_id = _find_frame(model, tip)
     if model.frames[tip_id].parentJoint != model.njoints - 1 and model.njoints > 1:
         raise RobotError(f"frame {tip!r} is not at the end of the chain")  # pragma: no cover
-
     names = tuple(model.names[1:])
     prismatic = tuple(model.joints[j].shortname().startswith("JointModelP") for j in range(1, model.njoints))
-    lower = np.empty(len(names))
-    upper = np.empty(len(names))
+    lower, upper = np.full(len(names), -np.inf), np.full(len(names), np.inf)
     for k in range(len(names)):
         joint = model.joints[k + 1]
-        if joint.nq == 2:
-            lower[k], upper[k] = -np.inf, np.inf
-        else:
-            lower[k] = model.lowerPositionLimit[joint.idx_q]
-            upper[k] = model.upperPositionLimit[joint.idx_q]
+        if joint.nq != 2:  # a continuous joint (cos, sin) has no limits
+            lower[k], upper[k] = model.lowerPositionLimit[joint.idx_q], model.upperPositionLimit[joint.idx_q]
     return Robot(
         name=name,
         urdf_path=path,
@@ -338,3 +304,45 @@ def load_robot(
         upper=upper,
         urdf_joints=tuple(full.names[1:]),
     )
+
+
+def _parse_urdf(path: Path) -> pin.Model:
+    """The full Pinocchio model of a URDF.
+
+    Raises:
+        RobotError: unreadable or refused file (:func:`read_urdf_text`), or a URDF Pinocchio
+            cannot parse (with urdfdom's own error line when it wrote one).
+    """
+    text = read_urdf_text(path)
+    with _stderr_captured() as said:
+        try:
+            return pin.buildModelFromXML(text)
+        except (RuntimeError, ValueError) as exc:
+            error = " ".join(str(exc).split())
+    detail = next((ln.strip() for ln in said() if ln.strip().lower().startswith("error")), "")
+    raise RobotError(f"cannot load URDF {path}: {detail or error}: fix the URDF (check it with check_urdf)")
+
+
+def _actuated_joints(full: pin.Model, tip_id: int, tip: str, joints: Iterable[str] | None) -> list[int]:
+    """Ids in ``full`` of the joints left actuated: the base-to-tip path, or ``joints`` on it.
+
+    Raises:
+        RobotError: a joint unknown or off the path, or one neither revolute nor prismatic.
+    """
+    keep = _joint_path(full, full.frames[tip_id].parentJoint)
+    if joints is not None:
+        wanted = set(joints)
+        unknown = wanted - set(full.names[1:])
+        if unknown:
+            raise RobotError(f"the URDF has no joint named {', '.join(sorted(unknown))}")
+        off_path = wanted - {full.names[j] for j in keep}
+        if off_path:
+            raise RobotError(f"joint(s) {', '.join(sorted(off_path))} are not between the base and {tip!r}")
+        keep = [j for j in keep if full.names[j] in wanted]
+    for j in keep:
+        if full.joints[j].nv != 1:
+            raise RobotError(
+                f"joint {full.names[j]!r} is a {full.joints[j].shortname()}: "
+                "only revolute, continuous and prismatic joints can be calibrated"
+            )
+    return keep

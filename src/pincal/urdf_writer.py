@@ -32,12 +32,12 @@ import numpy as np
 import pinocchio as pin
 from lxml import etree
 
+from .calibration import Calibration
 from .data import atomic_write
 from .effects import Extension, Payload
 from .errors import DataError, PincalError
 from .kinematics import Chain, forward
 from .robots import Robot, load_robot
-from .solver import Calibration
 
 _PARSER = etree.XMLParser(resolve_entities=False, no_network=True, load_dtd=False, remove_comments=False)
 

@@ -1,0 +1,251 @@
+"""Automatic model choice on simulated arms: ``params="auto"`` and ``extension="auto"`` of
+:func:`pincal.calibrate` against fitting every parameter, in accuracy, false alarms and time.
+
+Every experiment is :func:`pincal.simulate` with its defaults: random geometric errors (joint
+placements and zero offsets), the tracker's registration and the measured point on the tip
+unknown, 0.03 mm (3e-5 m) of Gaussian noise per coordinate, position data; model ``placements``.
+
+1. **Accuracy** (``--fit-seeds`` seeds per robot, default 10; 150 fitted poses, held-out RMS on
+   200 other simulated poses): ``params="auto"`` against ``params="all"``, the held-out RMS of
+   each, whether auto kept every identifiable parameter (``cal.choice.params is None``) and the
+   ratio auto / all. Acceptance: on every seed auto keeps every identifiable parameter, or its
+   held-out RMS is at most 2 % above all's (ratio <= 1.02).
+2. **False alarms** (``--seeds`` seeds per robot, default 20; 60 fitted poses, clean data: no
+   hidden effect): ``params="auto", extension="auto"``. Acceptance: no cause named
+   (``cal.choice.extension is None``) on any seed, i.e. 20 of 20.
+3. **Time** (100 fitted poses, seed 0): median wall time of ``--repeat`` (default 7) calls of
+   ``calibrate(params="auto")`` and of ``calibrate(params="all")`` on the same data, run
+   alternately in the same process after one untimed warm-up of each. Acceptance: auto <= 1.5 x
+   all. ``calibrate(params="auto", nested=True)`` (the choice judged by 5-fold nested
+   cross-validation) is timed too, for information only.
+
+The process exits with status 1 when an acceptance fails. Timings use one BLAS thread (set
+below, before numpy loads, as in ``real_data.py``).
+
+Usage::
+
+    python benchmarks/auto_choice.py [--seeds 20] [--fit-seeds 10] [--repeat 7]
+        [--robots ur5 panda] [--parts 1 2 3] [--quick] [--json FILE]
+
+``--quick`` runs 3 seeds in parts 1 and 2 and 3 timed repeats (about a minute).
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import statistics  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from typing import Any  # noqa: E402
+
+import pincal  # noqa: E402
+
+#: Part 1: fitted and held-out poses.
+FIT_POSES, TEST_POSES = 150, 200
+#: Part 1: auto may lose at most this fraction of held-out RMS against all when it drops parameters.
+MAX_LOSS = 0.02
+#: Part 2: fitted poses (a diagnosis costs 5-20 s).
+CLEAN_POSES = 60
+#: Part 3: fitted poses, and the largest accepted time ratio auto / all.
+TIMING_POSES, MAX_TIME_RATIO = 100, 1.5
+NOISE = 3e-5
+
+
+def accuracy(robot_name: str, seeds: int) -> dict[str, Any]:
+    """Part 1: auto against all on ``seeds`` simulations of ``robot_name``."""
+    robot = pincal.load_robot(robot_name)
+    rows = []
+    for seed in range(seeds):
+        _, fit, test = pincal.simulate(robot, n_fit=FIT_POSES, n_test=TEST_POSES, seed=seed, noise=NOISE)
+        row: dict[str, Any] = {"seed": seed}
+        try:
+            auto = pincal.calibrate(robot, fit, params="auto", test=test)
+            full = pincal.calibrate(robot, fit, params="all", test=test)
+        except Exception as exc:  # a benchmark reports the seed rather than stopping
+            row.update(error=f"{type(exc).__name__}: {exc}", ok=False)
+            rows.append(row)
+            continue
+        params = auto.choice.params
+        row["auto_rms_mm"] = auto.test_after.rms_mm
+        row["all_rms_mm"] = full.test_after.rms_mm
+        row["keeps_all"] = params is None
+        row["auto_n_params"] = None if params is None else len(params)
+        row["auto_n_identifiable"] = auto.identifiability.n_identifiable
+        row["all_n_identifiable"] = full.identifiability.n_identifiable
+        row["ratio"] = row["auto_rms_mm"] / row["all_rms_mm"]
+        row["ok"] = row["keeps_all"] or row["ratio"] <= 1.0 + MAX_LOSS
+        rows.append(row)
+    ratios = [r["ratio"] for r in rows if "ratio" in r]
+    return {
+        "robot": robot_name,
+        "seeds": seeds,
+        "keeps_all": sum(bool(r.get("keeps_all")) for r in rows),
+        "median_ratio": statistics.median(ratios) if ratios else None,
+        "worst_ratio": max(ratios) if ratios else None,
+        "failures": [r["seed"] for r in rows if not r["ok"]],
+        "rows": rows,
+    }
+
+
+def false_alarms(robot_name: str, seeds: int) -> dict[str, Any]:
+    """Part 2: ``extension="auto"`` on clean simulations of ``robot_name``."""
+    robot = pincal.load_robot(robot_name)
+    rows = []
+    for seed in range(seeds):
+        _, fit, _ = pincal.simulate(robot, n_fit=CLEAN_POSES, n_test=1, seed=seed, noise=NOISE)
+        row: dict[str, Any] = {"seed": seed}
+        start = time.perf_counter()
+        try:
+            cal = pincal.calibrate(robot, fit, params="auto", extension="auto")
+        except Exception as exc:
+            row.update(error=f"{type(exc).__name__}: {exc}", cause=None, ok=False)
+            rows.append(row)
+            continue
+        ext = cal.choice.extension
+        row["seconds"] = time.perf_counter() - start
+        row["cause"] = None if ext is None else ext.label
+        row["keeps_all"] = cal.choice.params is None
+        row["rounds"] = len(cal.choice.rounds)
+        row["ok"] = ext is None
+        rows.append(row)
+    seconds = [r["seconds"] for r in rows if "seconds" in r]
+    return {
+        "robot": robot_name,
+        "seeds": seeds,
+        "no_cause": sum(r["ok"] for r in rows),
+        "keeps_all": sum(bool(r.get("keeps_all")) for r in rows),
+        "median_seconds": statistics.median(seconds) if seconds else None,
+        "total_seconds": sum(seconds),
+        "named": [{"seed": r["seed"], "cause": r["cause"]} for r in rows if r["cause"] is not None],
+        "errors": [{"seed": r["seed"], "error": r["error"]} for r in rows if "error" in r],
+    }
+
+
+def timing(robot_name: str, repeat: int) -> dict[str, Any]:
+    """Part 3: median wall times of auto, all and auto with nested cross-validation [s]."""
+    robot = pincal.load_robot(robot_name)
+    _, fit, _ = pincal.simulate(robot, n_fit=TIMING_POSES, n_test=1, seed=0, noise=NOISE)
+    calls = {
+        "auto": dict(params="auto"),
+        "all": dict(params="all"),
+        "auto_nested": dict(params="auto", nested=True),
+    }
+    times: dict[str, list[float]] = {name: [] for name in calls}
+    for kwargs in calls.values():  # warm-up: imports, caches
+        pincal.calibrate(robot, fit, **kwargs)
+    for _ in range(repeat):
+        for name, kwargs in calls.items():
+            start = time.perf_counter()
+            pincal.calibrate(robot, fit, **kwargs)
+            times[name].append(time.perf_counter() - start)
+    medians = {name: statistics.median(t) for name, t in times.items()}
+    ratio = medians["auto"] / medians["all"]
+    return {
+        "robot": robot_name,
+        "poses": TIMING_POSES,
+        "repeat": repeat,
+        **{f"{name}_s": m for name, m in medians.items()},
+        "ratio": ratio,
+        "ok": ratio <= MAX_TIME_RATIO,
+        "times_s": times,
+    }
+
+
+def _fmt(x: float | None, spec: str) -> str:
+    return "-" if x is None else format(x, spec)
+
+
+def print_accuracy(results: list[dict[str, Any]]) -> None:
+    print(f"\n1. params auto vs all: {FIT_POSES} fitted poses, held-out RMS on {TEST_POSES}, noise 0.03 mm")
+    print(f"   {'robot':6s} {'seed':>4s} {'auto mm':>8s} {'all mm':>8s} {'ratio':>7s} {'kept':>7s}  ok")
+    for res in results:
+        for r in res["rows"]:
+            if "error" in r:
+                print(f"   {res['robot']:6s} {r['seed']:4d}  ERROR {r['error']}")
+                continue
+            kept = "all" if r["keeps_all"] else f"{r['auto_n_params']}"
+            print(
+                f"   {res['robot']:6s} {r['seed']:4d} {r['auto_rms_mm']:8.4f} {r['all_rms_mm']:8.4f} "
+                f"{r['ratio']:7.4f} {kept:>7s}  {'yes' if r['ok'] else 'NO'}"
+            )
+    print(f"   {'robot':6s} {'kept all':>9s} {'median ratio':>13s} {'worst ratio':>12s}  failing seeds")
+    for res in results:
+        print(
+            f"   {res['robot']:6s} {res['keeps_all']:>4d} of {res['seeds']:<2d} "
+            f"{_fmt(res['median_ratio'], '13.4f')} {_fmt(res['worst_ratio'], '12.4f')}  "
+            f"{', '.join(map(str, res['failures'])) or 'none'}"
+        )
+
+
+def print_false_alarms(results: list[dict[str, Any]]) -> None:
+    print(f"\n2. extension auto on clean data: {CLEAN_POSES} fitted poses, params auto")
+    head = f"{'no cause':>10s} {'kept all':>10s} {'median s':>9s} {'total s':>8s}"
+    print(f"   {'robot':6s} {head}  causes named")
+    for res in results:
+        named = "; ".join(f"seed {n['seed']}: {n['cause']}" for n in res["named"]) or "none"
+        errors = "; ".join(f"seed {e['seed']}: {e['error']}" for e in res["errors"])
+        print(
+            f"   {res['robot']:6s} {res['no_cause']:>4d} of {res['seeds']:<3d} "
+            f"{res['keeps_all']:>4d} of {res['seeds']:<3d} {_fmt(res['median_seconds'], '9.1f')} "
+            f"{res['total_seconds']:8.0f}  {named}" + (f"  ERRORS {errors}" if errors else "")
+        )
+
+
+def print_timing(results: list[dict[str, Any]]) -> None:
+    repeat = results[0]["repeat"] if results else 0
+    print(f"\n3. time of calibrate: {TIMING_POSES} fitted poses, median of {repeat} alternating runs [ms]")
+    head = f"{'auto':>8s} {'all':>8s} {'auto/all':>9s} {'nested':>8s}"
+    print(f"   {'robot':6s} {head}  ok (<= {MAX_TIME_RATIO})")
+    for r in results:
+        print(
+            f"   {r['robot']:6s} {r['auto_s'] * 1e3:8.1f} {r['all_s'] * 1e3:8.1f} {r['ratio']:9.2f} "
+            f"{r['auto_nested_s'] * 1e3:8.1f}  {'yes' if r['ok'] else 'NO'}"
+        )
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=int, default=20, help="seeds per robot of part 2 (default 20)")
+    parser.add_argument("--fit-seeds", type=int, default=10, help="seeds per robot of part 1 (default 10)")
+    parser.add_argument("--repeat", type=int, default=7, help="timed runs of part 3 (default 7)")
+    parser.add_argument("--robots", nargs="+", default=["ur5", "panda"], help="robots (default ur5 panda)")
+    parser.add_argument("--parts", nargs="+", type=int, choices=(1, 2, 3), default=[1, 2, 3])
+    parser.add_argument("--quick", action="store_true", help="3 seeds in parts 1 and 2, 3 timed runs")
+    parser.add_argument("--json", metavar="FILE", help="write the numbers to FILE")
+    args = parser.parse_args(argv)
+    if args.quick:
+        args.seeds, args.fit_seeds, args.repeat = min(args.seeds, 3), min(args.fit_seeds, 3), 3
+
+    start = time.perf_counter()
+    out: dict[str, Any] = {"robots": args.robots, "noise_m": NOISE}
+    ok = True
+    if 1 in args.parts:
+        out["accuracy"] = [accuracy(name, args.fit_seeds) for name in args.robots]
+        print_accuracy(out["accuracy"])
+        ok &= not any(res["failures"] for res in out["accuracy"])
+    if 2 in args.parts:
+        out["false_alarms"] = [false_alarms(name, args.seeds) for name in args.robots]
+        print_false_alarms(out["false_alarms"])
+        ok &= all(res["no_cause"] == res["seeds"] for res in out["false_alarms"])
+    if 3 in args.parts:
+        out["timing"] = [timing(name, args.repeat) for name in args.robots]
+        print_timing(out["timing"])
+        ok &= all(r["ok"] for r in out["timing"])
+    out["seconds"] = time.perf_counter() - start
+    out["accepted"] = bool(ok)
+    print(f"\nacceptance: {'all passed' if ok else 'FAILED (see above)'}; {out['seconds']:.0f} s")
+    if args.json:
+        with open(args.json, "w", encoding="utf-8") as fh:
+            json.dump(out, fh, indent=2)
+            fh.write("\n")
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,88 @@
+"""Candidate measurement poses: random joint configurations the robot can safely be measured in.
+
+A candidate is drawn uniformly within the joint limits (a ``margin`` of each range left out) and
+kept when every joint origin that moves, and the measured point, stay ``clearance`` above the floor
+(``z`` in the base frame), and, if the instrument has a ``reach``, the measured point is within it.
+:func:`pincal.planning.plan_poses` chooses its measurement poses among these. Lengths are metres,
+angles radians.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import DataError
+from .kinematics import Chain, forward
+from .robots import Robot
+
+
+def candidate_poses(
+    robot: Robot,
+    n: int,
+    seed: int = 0,
+    margin: float = 0.05,
+    floor: float = 0.0,
+    clearance: float = 0.05,
+    tool: np.ndarray | None = None,
+    instrument: np.ndarray | None = None,
+    reach: float | None = None,
+) -> np.ndarray:
+    """``n`` random feasible configurations (n, n_joints) [rad or m].
+
+    Args:
+        robot: the robot.
+        n: number wanted.
+        seed: random seed.
+        margin: fraction of each joint range left out at both ends.
+        floor: height of the floor in the base frame [m].
+        clearance: every joint origin that moves, and the measured point, stay this far above it [m].
+        tool: the measured point on the tip (3,) [m] (default: the tip's origin).
+        instrument: the instrument's position in the base frame (3,) [m] (default: the base origin).
+        reach: the instrument's range [m] (default: unlimited).
+
+    Raises:
+        DataError: too few configurations are feasible.
+    """
+    rng = np.random.default_rng(seed)
+    point = np.zeros(3) if tool is None else np.asarray(tool, float)
+    centre = np.zeros(3) if instrument is None else np.asarray(instrument, float)
+    chain = Chain.nominal(robot)
+    kept: list[np.ndarray] = []
+    drawn = 0
+    while sum(len(k) for k in kept) < n and drawn < 200 * n:
+        q = robot.random_configurations(max(n, 100), rng, margin)
+        drawn += len(q)
+        kept.append(q[_feasible(chain, q, point, floor + clearance, centre, reach)])
+    out = np.concatenate(kept)
+    if len(out) < n:
+        raise DataError(
+            f"only {len(out)} of {drawn} random configurations are above the floor and within reach: "
+            "lower the clearance, widen the reach or ask for fewer candidates"
+        )
+    return out[:n]
+
+
+def _feasible(
+    chain: Chain, q: np.ndarray, point: np.ndarray, lowest: float, centre: np.ndarray, reach: float | None
+) -> np.ndarray:
+    """Which configurations keep the robot above the floor and the measured point within reach.
+
+    Args:
+        chain: the nominal chain.
+        q: configurations (N, n) [rad or m].
+        point: the measured point on the tip (3,) [m].
+        lowest: the lowest height a moving joint origin or the measured point may reach [m].
+        centre: the instrument's position in the base frame (3,) [m].
+        reach: the instrument's range [m], or None for unlimited.
+
+    Returns:
+        (N,) mask of the feasible configurations.
+    """
+    frames = forward(chain, q)
+    tip = frames.tip_translation + frames.tip_rotation @ point
+    heights = frames.translations[:, :, 2]
+    moving = heights.std(axis=1) > 1e-9  # the joint origins a configuration can bring down
+    ok = np.all(heights[moving] >= lowest, axis=0) & (tip[:, 2] >= lowest)
+    if reach is not None:
+        ok &= np.linalg.norm(tip - centre, axis=1) <= reach
+    return ok

@@ -1,0 +1,108 @@
+"""What the ``pincal`` commands share: the chain and data from the arguments, output checks,
+the fit options and a progress line."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import pinocchio as pin
+
+from ..checks import check_columns, check_limits, check_scale
+from ..data import UNITS, Dataset, csv_columns, read_csv
+from ..errors import DataError
+from ..robots import BUNDLED, Robot, bundled_urdf, load_robot
+
+
+def urdf_path(robot: str | None) -> Path | None:
+    """The URDF file a ROBOT argument names (bundled robots included)."""
+    if robot is None:
+        return None
+    return bundled_urdf(robot) if robot in BUNDLED else Path(robot)
+
+
+def chain(args: argparse.Namespace) -> Robot:
+    """The chain; every chain joint needs a column in the data unless ``--lock`` holds it."""
+    chain = load_robot(args.robot, tip=args.tip)
+    unknown = [j for j in args.lock if j not in chain.joint_names]
+    if unknown:
+        raise DataError(
+            f"--lock {','.join(unknown)}: not joints between the base and {chain.tip} "
+            f"({', '.join(chain.joint_names)})"
+        )
+    check_columns(csv_columns(args.data), chain, args.lock)
+    if not args.lock:
+        return chain
+    if len(args.lock) == chain.n_joints:
+        raise DataError("--lock names every joint of the chain: nothing would move")
+    print(f"locked at their neutral value: {', '.join(args.lock)}")
+    return load_robot(args.robot, tip=args.tip, joints=[j for j in chain.joint_names if j not in args.lock])
+
+
+def check_outputs(args: argparse.Namespace, outputs: Sequence[Path | None], inputs: dict[str, Any]) -> None:
+    """Refuse outputs that are inputs, repeat, sit in no folder, or exist (without ``--force``).
+
+    Args:
+        args: the parsed command line (``--force``).
+        outputs: the files the command will write (None: not asked for).
+        inputs: what each input is ("data file", ...) -> its path or ROBOT argument (or None).
+    """
+    sources = {label: Path(str(p)) for label, p in inputs.items() if p is not None}
+    sources = {label: p for label, p in sources.items() if p.is_file()}
+    seen: list[Path] = []
+    for out in outputs:
+        if out is None:
+            continue
+        if out.is_dir():
+            raise DataError(f"{out} is a folder: give a file name for the output")
+        for label, src in sources.items():
+            if out.exists() and out.samefile(src):
+                raise DataError(f"{out} is the {label}: write the output to another file")
+        if out.resolve() in seen:
+            raise DataError(f"{out} is named for two outputs: give each its own file")
+        seen.append(out.resolve())
+        if not out.parent.resolve().is_dir():
+            raise DataError(f"the output folder {out.parent} does not exist: create it first")
+        if out.exists() and not args.force:
+            raise DataError(f"{out} exists already: pass --force to replace it, or choose another name")
+
+
+def fit_options(args: argparse.Namespace) -> dict[str, Any]:
+    """Keyword arguments of :func:`pincal.calibrate` from the shared options."""
+    return {
+        "instrument_T_base": pin.SE3.Identity() if args.instrument_frame == "base" else None,
+        "tool": None if args.tool_point is None else args.tool_point * UNITS[args.units],
+        "rotation_weight": args.rotation_weight,
+        "loss": args.loss,
+        "partial": args.partial,
+    }
+
+
+def load_data(path: Path, robot: Robot, args: argparse.Namespace) -> Dataset:
+    """Read a measurement CSV and check its joint values and units against the robot."""
+    data = read_csv(
+        path, robot.joint_names, degrees=args.degrees, units=args.units, prismatic=robot.prismatic
+    )
+    check_limits(robot, data, args.degrees)
+    check_scale(robot, data, args.units)
+    return data
+
+
+def progress_line(what: str) -> Callable[[int, int, str], None] | None:
+    """A one-line progress display on stderr (None when stderr is not a terminal)."""
+    if not sys.stderr.isatty():
+        return None
+
+    def show(done: int, total: int, label: str) -> None:
+        print(f"\r  {what} {done}/{total} ({label})".ljust(72), end="", file=sys.stderr, flush=True)
+
+    return show
+
+
+def end_progress(show: Callable[[int, int, str], None] | None) -> None:
+    """Close the progress line."""
+    if show is not None:
+        print(file=sys.stderr)

@@ -1,0 +1,41 @@
+"""``pincal compensate``: joint commands with which the calibrated robot reaches the program."""
+
+from __future__ import annotations
+
+import argparse
+
+from ..errors import DataError
+from ..robots import load_robot
+from ..urdf_writer import sidecar_path
+from .common import check_outputs, urdf_path
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the command; 0 on success."""
+    from ..compensate import compensate_program, write_program
+    from ..data import read_program
+    from ..urdf_writer import load_calibration
+
+    inputs = {
+        "program": args.program,
+        "calibration URDF": args.calibration,
+        "calibration sidecar": sidecar_path(args.calibration),
+    }
+    check_outputs(args, [args.output], {**inputs, "input URDF": urdf_path(args.robot)})
+    cal = load_calibration(args.calibration)
+    nominal = load_robot(args.robot, tip=cal.robot.tip, joints=cal.robot.joint_names)
+    program = read_program(args.program, nominal, args.degrees, args.units)
+    result = compensate_program(nominal, cal, program, task=args.task)
+    n = len(result.status)
+    if not result.ok.any():
+        raise DataError(
+            f"none of the {n} rows could be compensated ({result.failures()[0]}): check that the "
+            "program is for this robot and within its limits"
+        )
+    write_program(args.output, result, args.degrees, nominal.prismatic)
+    worst = float(result.position_error[result.ok].max()) * 1e3
+    print(f"compensated {int(result.ok.sum())} of {n} rows ({result.task} task, worst {worst:.4f} mm)")
+    for line in result.failures():
+        print(f"  {line}")
+    print(f"written to {args.output}")
+    return 0

@@ -1,0 +1,52 @@
+"""``pincal tcp``: tool centre point and tool frame from flange poses (Xiong et al. 2012)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+import numpy as np
+
+from ..data import UNITS, atomic_write
+from ..robots import load_robot
+from ..tool import calibrate_tool, read_flange_poses
+from .common import check_outputs, urdf_path
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the command; 0 on success."""
+    check_outputs(args, [args.json], {"poses file": args.poses, "input URDF": urdf_path(args.robot)})
+    robot = load_robot(args.robot, tip=args.tip) if args.robot else None
+    rotations, positions = read_flange_poses(args.poses, args.units, args.columns, robot, args.degrees)
+    tool = calibrate_tool(rotations, positions, args.orientation, scale=1.0 / UNITS[args.units])
+    u = args.units
+    print(f"TCP in the flange frame: ({', '.join(f'{v:.4f}' for v in tool.tcp)}) {u}")
+    print(f"  std: ({', '.join(f'{v:.4f}' for v in tool.tcp_std)}) {u}")
+    print(f"  fit error δ (eq. 10): {tool.fit_error:.4f} {u}")
+    print(f"  condition number of the TCP poses: {tool.condition_number:.3g}")
+    for row, (res, suspect) in enumerate(zip(tool.residuals, tool.suspects), start=1):
+        flag = "   <- far from the others (fit without it): re-teach this pose?" if suspect else ""
+        print(f"  pose {row}: TCP point off the others' common point by {res:.4f} {u}{flag}")
+    print(f"tool orientation ({args.orientation}), flange_R_tool:")
+    for line in tool.rotation:
+        print("  " + " ".join(f"{v:9.5f}" for v in line))
+    for warning in tool.warnings:
+        print(f"pincal: warning: {warning}", file=sys.stderr)
+    if args.json is not None:
+        result = {
+            "tcp": tool.tcp.tolist(),
+            "rotation": tool.rotation.tolist(),
+            "fit_error": tool.fit_error,
+            "units": u,
+            "tcp_std": tool.tcp_std.tolist(),
+            "point": tool.point.tolist(),
+            "residuals": tool.residuals.tolist(),
+            "suspect_poses": [int(i) + 1 for i in np.flatnonzero(tool.suspects)],
+            "condition_number": tool.condition_number,
+            "orientation": args.orientation,
+            "warnings": list(tool.warnings),
+        }
+        atomic_write(args.json, json.dumps(result, indent=2) + "\n")
+        print(f"written to {args.json}")
+    return 0

@@ -1,0 +1,205 @@
+""":func:`calibrate`: the whole identification, from data to a :class:`~pincal.Calibration`.
+
+The steps are those of :mod:`pincal.solver`; what to fit is given (``params=[...]``,
+``extension="EFFECT:JOINT"``), every identifiable parameter (``params="all"``), or chosen from
+the fitted poses alone (``params="auto"``, ``extension="auto"``, see :mod:`pincal.choice`).
+``pincal calibrate`` calls this function with ``params="auto"``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from .calibration import Calibration
+from .data import Dataset
+from .effects import Extension, Payload
+from .errors import DataError
+from .identifiability import RCOND, Identifiability
+from .measurements import ROTATION_WEIGHT
+from .models import Model
+from .robots import Robot
+from .solver import LOSSES, Setup, assess, identifiable_set, register, screen_outliers, set_up, solve
+
+Fit = tuple[np.ndarray, np.ndarray, Identifiability, Any]
+
+
+def fit(
+    setup: Setup,
+    params: Sequence[str] | None,
+    *,
+    partial: bool = False,
+    loss: str = "linear",
+    f_scale: float = 1e-4,
+    rcond: float = RCOND,
+    nominal: np.ndarray | None = None,
+) -> Fit:
+    """Register (unless the registration-only θ ``nominal`` is given), find the identifiable set,
+    solve: θ, the registration-only θ, the set, the solver's result."""
+    nominal = register(setup) if nominal is None else nominal
+    ident = identifiable_set(setup, nominal, params, partial, rcond)
+    theta, result = solve(setup, nominal, ident.identifiable, loss, f_scale)
+    return theta, nominal, ident, result
+
+
+def parse_params(params: Sequence[str] | str | None) -> tuple[str, ...] | str | None:
+    """``None`` or ``"all"`` (every identifiable parameter) -> None; ``"auto"``; or the names."""
+    if params is None or (isinstance(params, str) and params == "all"):
+        return None
+    if isinstance(params, str):
+        if params != "auto":
+            raise DataError(f"params={params!r}: use 'auto', 'all' or a list of parameter names")
+        return "auto"
+    return tuple(params)
+
+
+def parse_extension(
+    robot: Robot, extension: Extension | str | None, payload: Payload | None
+) -> Extension | str | None:
+    """``None``/``"none"`` -> None; ``"auto"``; ``EFFECT:JOINT`` -> its :class:`Extension`."""
+    if extension is None or extension == "none":
+        return None
+    if isinstance(extension, str):
+        return "auto" if extension == "auto" else Extension.parse(robot, extension, payload)
+    return extension
+
+
+def _kept_pairs(pairs: str | np.ndarray, n: int, keep: np.ndarray) -> str | np.ndarray:
+    """Pose pairs among the kept poses, renumbered (named pairings are rebuilt from the poses)."""
+    if isinstance(pairs, str):
+        return pairs
+    index = np.full(n, -1)
+    index[keep] = np.arange(len(keep))
+    mapped = index[np.asarray(pairs, dtype=int)]
+    return mapped[(mapped >= 0).all(axis=1)]
+
+
+def calibrate(
+    robot: Robot,
+    data: Dataset,
+    model: str | Model = "placements",
+    measure: str | None = None,
+    *,
+    test: Dataset | None = None,
+    instrument_T_base: pin.SE3 | None = None,
+    tool: pin.SE3 | np.ndarray | None = None,
+    rotation_weight: float = ROTATION_WEIGHT,
+    pairs: str | np.ndarray = "all",
+    loss: str = "linear",
+    f_scale: float = 1e-4, rcond: float = RCOND,  # fmt: skip
+    extension: Extension | str | None = None,
+    params: Sequence[str] | str | None = None,
+    outliers: float | None = None,
+    partial: bool = False,
+    payload: Payload | None = None,
+    folds: int = 5, seed: int = 0,  # fmt: skip
+    nested: bool | None = False,
+    progress: Callable[[int, int, str], None] | None = None,
+) -> Calibration:
+    """Identify a kinematic model from measurements.
+
+    Args:
+        robot, data, test: the chain (:func:`pincal.load_robot`), fitted and held-out poses.
+        model: ``placements``, ``poe``, ``mdh``, ``offsets`` or a :class:`~pincal.models.Model`.
+        measure: ``position``, ``pose`` or ``distance`` (default: ``pose`` with orientations).
+        instrument_T_base, tool: the known registration, and measured point on the tip (3,) [m]
+            or target frame (default: unknown, estimated).
+        rotation_weight: weight of orientation residuals [m/rad] for pose data; pairs: pose
+            pairs for distance data (``all``, ``gao`` (eq. 21) or an (m, 2) array).
+        loss, f_scale, rcond: ``linear`` or a robust loss and where it down-weights [m]; the
+            relative singular-value threshold of the rank.
+        extension: an effect identified with the geometry (:class:`~pincal.effects.Extension`
+            or ``EFFECT:JOINT``); ``"auto"``: the cause the diagnosis names on the chosen
+            geometry, if any (:mod:`pincal.choice`); None or ``"none"``: no extension.
+        params: the model parameters to fit: None or ``"all"`` (every identifiable one),
+            ``"auto"`` (chosen by cross-validation on ``data``, :mod:`pincal.choice`), or names;
+            the others stay nominal. Extension, registration and tool are always fitted.
+        outliers, partial: leave out poses this many robust σ above the others (:mod:`pincal.outliers`);
+            fit what the data identifies when varied poses would identify more.
+        payload, progress: a load on the tip, for gravity torques; ``progress(done, total,
+            label)``, called by ``extension="auto"``'s diagnosis.
+        folds, seed: K and seed of the cross-validation of ``extension="auto"`` and ``nested``.
+        nested: with ``"auto"``, judge the whole procedure by K-fold cross-validation (choice
+            and fit re-run without each fold): True, False, or None "when cheap" (``nested_policy``).
+
+    Raises:
+        DataError, IdentifiabilityError: unusable input (names, data), too little information.
+    """
+    if loss not in LOSSES:
+        raise DataError(f"unknown loss {loss!r}: choose one of {', '.join(LOSSES)}")
+    wanted, ext = parse_params(params), parse_extension(robot, extension, payload)
+    options: dict[str, Any] = dict(instrument_T_base=instrument_T_base, tool=tool, pairs=pairs)
+    options["rotation_weight"] = rotation_weight
+    fit_options: dict[str, Any] = dict(partial=partial, loss=loss, f_scale=f_scale, rcond=rcond)
+    call = dict(options, **fit_options, params=params, extension=extension, payload=payload)
+    given = ext if isinstance(ext, Extension) else None
+    setup = set_up(robot, data, model, measure, extension=given, **options)
+    nominal = _checked(setup, wanted, fit_options)  # for "auto": refuse what "all" refuses
+    from .choice import choose  # here: choice runs diagnose, which calls this function
+    choice = choose(setup, wanted, ext, folds=folds, seed=seed, payload=payload, options=options,
+                    fit_options=fit_options, progress=progress,
+                    start=nominal if given is None else None)  # fmt: skip
+    if wanted == "auto" or ext == "auto":
+        checked = wanted == "auto"  # every parameter passed the rank check: so does any subset
+        if choice.extension is not None and given is None:
+            setup = set_up(robot, data, model, measure, extension=choice.extension, **options)
+            nominal, checked = None, False
+        fit_options["partial"], wanted = partial or checked, choice.params
+    theta, nominal, ident, result = fit(setup, wanted, nominal=nominal, **fit_options)
+    bad, scores = screen_outliers(setup, theta, ident.identifiable, outliers or 0.0, f_scale)
+    if bad.size:  # leave them out and start again: the choice too is made on the poses kept
+        rest = dict(test=test, folds=folds, seed=seed, nested=nested, progress=progress)
+        return _without(robot, data, model, measure, bad, scores, {**call, **rest})
+    if nested is not False:
+        judge = _judge(robot, data, model, measure, folds, seed, {**call, "outliers": outliers})
+        choice = choice.with_nested(judge, nested is True, len(data))
+    return replace(assess(setup, theta, nominal, ident, result, test), choice=choice)
+
+
+def _without(
+    robot: Robot,
+    data: Dataset,
+    model: str | Model,
+    measure: str | None,
+    bad: np.ndarray,
+    scores: np.ndarray,
+    call: dict[str, Any],
+) -> Calibration:
+    """``calibrate(**call)`` again without the poses ``bad`` (scores [m]), which it records."""
+    keep = np.setdiff1d(np.arange(len(data)), bad)
+    again = {**call, "pairs": _kept_pairs(call["pairs"], len(data), keep), "outliers": None}
+    cal = calibrate(robot, data.subset(keep), model, measure, **again)
+    rows = data.row_numbers[bad]
+    return replace(cal, excluded=tuple((int(r), float(s) * 1e3) for r, s in zip(rows, scores[bad])))
+
+
+def _judge(
+    robot: Robot,
+    data: Dataset,
+    model: str | Model,
+    measure: str | None,
+    folds: int,
+    seed: int,
+    options: dict[str, Any],
+) -> Callable[[], Any]:
+    """The nested cross-validation of the whole call: ``calibrate(**options)`` without each fold."""
+    from .crossval import cross_validate
+
+    pairing = options["pairs"] if isinstance(options["pairs"], str) else "all"
+    return lambda: cross_validate(robot, data, model, measure, folds, seed, **{**options, "pairs": pairing})
+
+
+def _checked(
+    setup: Setup, wanted: tuple[str, ...] | str | None, fit_options: dict[str, Any]
+) -> np.ndarray | None:
+    """For ``params="auto"``, refuse data that ``params="all"`` refuses (unless ``partial``) and
+    return the registration-only θ it computed on the way."""
+    if wanted != "auto" or fit_options["partial"]:
+        return None
+    nominal = register(setup)
+    identifiable_set(setup, nominal, None, False, fit_options["rcond"])
+    return nominal
