@@ -196,8 +196,8 @@ def selection_path(
     """
     problem, data = setup.problem, setup.data
     kind = problem.measurement.kind
-    res = problem.residuals(theta)
-    jac = problem.jacobian(theta) * setup.scale
+    res, jac = setup.linearised(theta)
+    jac = jac * setup.scale
     n_geo = setup.model.n_params
     tol = RCOND * float(np.max(np.linalg.norm(jac, axis=0)))
     left, sv, _ = np.linalg.svd(jac[:, n_geo:], full_matrices=False)  # always fitted

@@ -22,7 +22,7 @@ steps 2 and 4, on the poses being fitted only.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -61,6 +61,15 @@ class Setup:
     problem: Problem
     scale: np.ndarray
     tool: pin.SE3
+    _last: dict[str, Any] = field(default_factory=dict, init=False, repr=False)
+
+    def linearised(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Residuals and Jacobian at ``theta``; the last pair is kept, as the registration-only
+        point is asked for by the rank check, the selection and the fit in turn."""
+        key = theta.tobytes()
+        if self._last.get("key") != key:
+            self._last.update(key=key, value=(self.problem.residuals(theta), self.problem.jacobian(theta)))
+        return self._last["value"]
 
     @property
     def model(self) -> Model:
@@ -212,7 +221,7 @@ def identifiable_set(
     preference = np.ones(problem.n_params)
     preference[:n_model] = 1.0 + 0.05 * np.linspace(0.0, 1.0, n_model)
     preference[n_model:] = 2.0
-    jacobian = problem.jacobian(theta)
+    jacobian = setup.linearised(theta)[1]
     ident = analyse(jacobian, problem.names, setup.scale, candidates, preference, held, rcond)
     n_res, n_poses = len(jacobian), len(setup.data)
     n_needed = ident.n_identifiable
