@@ -87,20 +87,14 @@ class Row:
     command: str = ""
 
 
-#: Median CPU time [s] of the last call of :func:`timed` (this process only: robust to other load).
-LAST_CPU: list[float] = [0.0]
-
-
 def timed(repeat: int, fn: Callable[..., T], *args: Any, **kwargs: Any) -> tuple[T, float]:
     """The result of ``fn(*args, **kwargs)`` and the median wall time [s] of ``repeat`` calls."""
-    times, cpu, result = [], [], None
+    times, result = [], None
     for _ in range(repeat):
-        start, start_cpu = time.perf_counter(), time.process_time()
+        start = time.perf_counter()
         result = fn(*args, **kwargs)
         times.append(time.perf_counter() - start)
-        cpu.append(time.process_time() - start_cpu)
     assert result is not None
-    LAST_CPU[0] = statistics.median(cpu)
     return result, statistics.median(times)
 
 

@@ -129,8 +129,8 @@ def check_scale(robot: Robot, data: Dataset, units: str = "m") -> None:
     """
     tips = np.array([robot.frame_placement(q).translation for q in data.q])
     with np.errstate(over="ignore", invalid="ignore"):
-        tip_spread = _spread(tips)
-        measured = _spread(data.points)
+        tip_spread = spread(tips)
+        measured = spread(data.points)
     if not np.isfinite(tip_spread):
         raise DataError("the URDF puts the tip beyond any finite distance: check its joint origins")
     if not np.isfinite(measured) or measured > 1e6:  # [m]
@@ -158,6 +158,6 @@ def check_scale(robot: Robot, data: Dataset, units: str = "m") -> None:
     )
 
 
-def _spread(points: np.ndarray) -> float:
+def spread(points: np.ndarray) -> float:
     """RMS distance of points from their centroid [m]."""
     return float(np.sqrt(np.mean(np.sum((points - points.mean(axis=0)) ** 2, axis=1))))

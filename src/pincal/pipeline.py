@@ -63,9 +63,13 @@ def parse_extension(
     """``None``/``"none"`` -> None; ``"auto"``; ``EFFECT:JOINT`` -> its :class:`Extension`."""
     if extension is None or extension == "none":
         return None
-    if isinstance(extension, str):
-        return "auto" if extension == "auto" else Extension.parse(robot, extension, payload)
-    return extension
+    if not isinstance(extension, str) or extension == "auto":
+        return extension
+    if ":" not in extension:
+        raise DataError(
+            f"--extend {extension!r}: write auto, none or EFFECT:JOINT (for example joint_compliance:J)"
+        )
+    return Extension.parse(robot, extension, payload)
 
 
 def _kept_pairs(pairs: str | np.ndarray, n: int, keep: np.ndarray) -> str | np.ndarray:

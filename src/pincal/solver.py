@@ -30,6 +30,7 @@ import pinocchio as pin
 from scipy.optimize import OptimizeResult, least_squares
 
 from .calibration import Calibration
+from .checks import spread
 from .data import Dataset
 from .effects import Extension
 from .errors import DataError, IdentifiabilityError
@@ -84,8 +85,7 @@ class Setup:
 
 def workspace_length(data: Dataset) -> float:
     """RMS distance of the measured points from their centroid [m] (at least 5 cm)."""
-    spread = np.sum((data.points - data.points.mean(0)) ** 2, axis=1)
-    return max(0.05, float(np.sqrt(np.mean(spread))))
+    return max(0.05, spread(data.points))
 
 
 def _pairs(pairs: str | np.ndarray, n: int) -> np.ndarray | None:
@@ -269,13 +269,12 @@ def assess(
     n_model, measurement = problem.n_model, problem.measurement
     # The URDF as it is: nominal tool, only the registration fitted.
     urdf_meas = replace(measurement, tool=setup.tool, fit_tool=False)
-    urdf_setup = Setup(Problem(mdl, urdf_meas, data, ext), setup.scale, setup.tool)
-    urdf_theta = urdf_setup.problem.initial_theta()
+    urdf_problem = Problem(mdl, urdf_meas, data, ext)
+    urdf_theta = urdf_problem.initial_theta()
     if urdf_meas.n_instrument:
         urdf_theta[n_model:] = theta[n_model : n_model + 6]
-        urdf_free = np.arange(urdf_setup.problem.n_params) >= n_model
-        urdf_setup = replace(urdf_setup, scale=setup.scale[: len(urdf_theta)])
-        urdf_theta, _ = solve(urdf_setup, urdf_theta, urdf_free)
+        urdf_setup = Setup(urdf_problem, setup.scale[: urdf_problem.n_params], setup.tool)
+        urdf_theta, _ = solve(urdf_setup, urdf_theta, np.arange(urdf_problem.n_params) >= n_model)
 
     std = np.zeros(problem.n_params)
     free = ident.identifiable

@@ -32,13 +32,6 @@ def _check_arguments(args: argparse.Namespace) -> None:
     )
 
 
-def _extension(text: str) -> str:
-    """``--extend``: ``auto``, ``none`` or ``EFFECT:JOINT`` (checked by :func:`pincal.calibrate`)."""
-    if text in ("auto", "none") or ":" in text:
-        return text
-    raise DataError(f"--extend {text!r}: write auto, none or EFFECT:JOINT (for example joint_compliance:J)")
-
-
 def run(args: argparse.Namespace) -> int:
     """Run the command; 0 on success."""
     _check_arguments(args)
@@ -56,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
         test=test,
         pairs=args.pairs,
         params=args.params,
-        extension=_extension(args.extend),
+        extension=args.extend,
         payload=args.payload,
         outliers=args.outliers or None,
         folds=args.folds,
