@@ -13,7 +13,7 @@ import pincal
 from pincal.diagnose import diagnose
 from pincal.effects import Extension
 from pincal.plots import plot_diagnosis
-from pincal.simulate import hide_effect
+from pincal.simulation import hide_effect
 
 
 def main() -> None:

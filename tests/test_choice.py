@@ -27,7 +27,7 @@ from pincal.choice import NESTED_MAX_POSES
 from pincal.cli import main
 from pincal.effects import Extension
 from pincal.models import PlacementsModel
-from pincal.simulate import TrueRobot, hide_effect
+from pincal.simulation import TrueRobot, hide_effect
 
 NOISE = 3e-5  # 1σ of each measured coordinate [m]
 

@@ -27,7 +27,7 @@ from pincal import (
 )
 from pincal.data import read_table
 from pincal.planning import candidate_poses, plan_poses
-from pincal.simulate import hide_effect
+from pincal.simulation import hide_effect
 
 #: (robot, model, measure, hidden effect identified with the geometry)
 CASES = {

@@ -25,7 +25,7 @@ import pincal
 from pincal.cli import main
 from pincal.diagnose import Diagnosis, diagnose
 from pincal.effects import EFFECTS, Extension, candidates
-from pincal.simulate import TrueRobot, hide_effect
+from pincal.simulation import TrueRobot, hide_effect
 
 NOISE = 3e-5  # 1σ of each measured coordinate [m]
 NOISE_FLOOR_MM = NOISE * 1e3 * np.sqrt(3.0)  # RMS of a 3-D noise vector [mm], 0.052 mm

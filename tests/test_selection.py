@@ -25,7 +25,7 @@ import pincal
 from pincal.crossval import fold_indices
 from pincal.models import PlacementsModel
 from pincal.selection import Selection, cross_validate_selection, select_parameters
-from pincal.simulate import TrueRobot
+from pincal.simulation import TrueRobot
 
 NOISE = 3e-5  # 1σ of each measured coordinate [m]
 NOISE_FLOOR_MM = NOISE * 1e3 * np.sqrt(3.0)  # RMS of a 3-D noise vector [mm]

@@ -9,41 +9,130 @@ Load a robot, read or simulate measurements, calibrate, read the report::
     print(pincal.summary(cal))
 """
 
-from .calibration import Calibration
-from .checks import check_columns, check_limits, check_scale
-from .choice import ModelChoice
-from .compensate import Compensation, compensate_program, write_program
-from .crossval import CrossValidation, cross_validate
-from .data import Dataset, Targets, read_csv, read_program, write_csv
-from .demo import gao2013_data
-from .diagnose import Candidate, Diagnosis
-from .effects import EFFECTS, Extension
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
 from .errors import DataError, IdentifiabilityError, NotSupportedError, PincalError, RobotError
-from .evaluation import ErrorStats, distance_errors, evaluate, pose_errors
-from .identifiability import Identifiability
-from .kinematics import Chain, forward, joint_jacobian, tip_jacobian
-from .mdh import MdhModel, MdhTable, mdh_table
-from .measurements import Measurement, Problem, all_pairs, gao_pairs
-from .models import MODELS, Model, OffsetsModel, PlacementsModel, PoeModel, make_model
-from .outliers import find_outliers, pose_scores
-from .pipeline import calibrate
-from .planning import Design, Plan, candidate_poses, plan_poses, write_poses
-from .plots import plot_diagnosis
-from .report import report_dict, report_json, summary
-from .robots import BUNDLED, Robot, load_robot
-from .selection import (
-    Selection,
-    SelectionCrossValidation,
-    SelectionStep,
-    cross_validate_selection,
-    select_parameters,
-)
-from .simulate import TrueRobot, hide_effect, random_truth, simulate
-from .tool import ToolCalibration, calibrate_tool, read_flange_poses
-from .twists import Twists, chain_twists, gao_k, left_jacobian, nominal_twists, poe_forward
-from .urdf_writer import CalibratedRobot, corrected_urdf, load_calibration, write_corrected_urdf
+from .options import BUNDLED, MODELS
+
+if TYPE_CHECKING:  # the same names for type checkers; at run time each loads on first use
+    from .calibration import Calibration
+    from .checks import check_columns, check_limits, check_scale
+    from .choice import ModelChoice
+    from .compensate import Compensation, compensate_program, write_program
+    from .crossval import CrossValidation, cross_validate
+    from .data import Dataset, Targets, read_csv, read_program, write_csv
+    from .demo import gao2013_data
+    from .diagnose import Candidate, Diagnosis
+    from .effects import EFFECTS, Extension
+    from .evaluation import ErrorStats, distance_errors, evaluate, pose_errors
+    from .identifiability import Identifiability
+    from .kinematics import Chain, forward, joint_jacobian, tip_jacobian
+    from .mdh import MdhModel, MdhTable, mdh_table
+    from .measurements import Measurement, Problem, all_pairs, gao_pairs
+    from .models import Model, OffsetsModel, PlacementsModel, PoeModel, make_model
+    from .outliers import find_outliers, pose_scores
+    from .pipeline import calibrate
+    from .planning import Design, Plan, candidate_poses, plan_poses, write_poses
+    from .plots import plot_diagnosis
+    from .report import report_dict, report_json, summary
+    from .robots import Robot, load_robot
+    from .selection import (
+        Selection,
+        SelectionCrossValidation,
+        SelectionStep,
+        cross_validate_selection,
+        select_parameters,
+    )
+    from .simulation import TrueRobot, hide_effect, random_truth, simulate
+    from .tool import ToolCalibration, calibrate_tool, read_flange_poses
+    from .twists import Twists, chain_twists, gao_k, left_jacobian, nominal_twists, poe_forward
+    from .urdf_writer import CalibratedRobot, corrected_urdf, load_calibration, write_corrected_urdf
 
 __version__ = "0.1.0"
+
+#: Where each public name lives: ``import pincal`` stays light (``pincal --help`` loads no NumPy).
+_LAZY: dict[str, str] = {
+    "Calibration": "calibration",
+    "check_columns": "checks",
+    "check_limits": "checks",
+    "check_scale": "checks",
+    "ModelChoice": "choice",
+    "Compensation": "compensate",
+    "compensate_program": "compensate",
+    "write_program": "compensate",
+    "CrossValidation": "crossval",
+    "cross_validate": "crossval",
+    "Dataset": "data",
+    "Targets": "data",
+    "read_csv": "data",
+    "read_program": "data",
+    "write_csv": "data",
+    "gao2013_data": "demo",
+    "Candidate": "diagnose",
+    "Diagnosis": "diagnose",
+    "EFFECTS": "effects",
+    "Extension": "effects",
+    "ErrorStats": "evaluation",
+    "distance_errors": "evaluation",
+    "evaluate": "evaluation",
+    "pose_errors": "evaluation",
+    "Identifiability": "identifiability",
+    "Chain": "kinematics",
+    "forward": "kinematics",
+    "joint_jacobian": "kinematics",
+    "tip_jacobian": "kinematics",
+    "MdhModel": "mdh",
+    "MdhTable": "mdh",
+    "mdh_table": "mdh",
+    "Measurement": "measurements",
+    "Problem": "measurements",
+    "all_pairs": "measurements",
+    "gao_pairs": "measurements",
+    "Model": "models",
+    "OffsetsModel": "models",
+    "PlacementsModel": "models",
+    "PoeModel": "models",
+    "make_model": "models",
+    "find_outliers": "outliers",
+    "pose_scores": "outliers",
+    "calibrate": "pipeline",
+    "Design": "planning",
+    "Plan": "planning",
+    "candidate_poses": "planning",
+    "plan_poses": "planning",
+    "write_poses": "planning",
+    "plot_diagnosis": "plots",
+    "report_dict": "report",
+    "report_json": "report",
+    "summary": "report",
+    "Robot": "robots",
+    "load_robot": "robots",
+    "Selection": "selection",
+    "SelectionCrossValidation": "selection",
+    "SelectionStep": "selection",
+    "cross_validate_selection": "selection",
+    "select_parameters": "selection",
+    "TrueRobot": "simulation",
+    "hide_effect": "simulation",
+    "random_truth": "simulation",
+    "simulate": "simulation",
+    "ToolCalibration": "tool",
+    "calibrate_tool": "tool",
+    "read_flange_poses": "tool",
+    "Twists": "twists",
+    "chain_twists": "twists",
+    "gao_k": "twists",
+    "left_jacobian": "twists",
+    "nominal_twists": "twists",
+    "poe_forward": "twists",
+    "CalibratedRobot": "urdf_writer",
+    "corrected_urdf": "urdf_writer",
+    "load_calibration": "urdf_writer",
+    "write_corrected_urdf": "urdf_writer",
+}
 
 __all__ = [
     "BUNDLED",
@@ -131,3 +220,22 @@ __all__ = [
     "write_poses",
     "write_program",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    """Load a public name (or a submodule, ``pincal.diagnose``) on first use."""
+    if name in _LAZY:
+        value = getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+    else:
+        try:
+            value = importlib.import_module(f".{name}", __name__)
+        except ModuleNotFoundError as exc:
+            if exc.name != f"{__name__}.{name}":  # a submodule that failed to import: say why
+                raise
+            raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

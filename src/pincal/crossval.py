@@ -22,6 +22,7 @@ from .measurements import Problem, all_pairs
 from .models import Model
 from .pipeline import calibrate
 from .robots import Robot
+from .threads import limited
 
 
 @dataclass(frozen=True)
@@ -77,6 +78,7 @@ def held_out_errors(cal: Calibration, data: Dataset, held: np.ndarray) -> list[n
     return out
 
 
+@limited
 def cross_validate(
     robot: Robot,
     data: Dataset,

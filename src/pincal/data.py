@@ -22,9 +22,9 @@ import numpy as np
 import pinocchio as pin
 
 from .errors import DataError
+from .options import UNITS
 from .robots import Robot
 
-UNITS = {"m": 1.0, "mm": 1e-3}
 _QUAT = ("qw", "qx", "qy", "qz")
 
 

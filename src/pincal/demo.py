@@ -20,7 +20,7 @@ from .evaluation import evaluate
 from .models import MODELS
 from .pipeline import calibrate
 from .robots import load_robot
-from .simulate import simulate
+from .simulation import simulate
 
 
 def gao2013_data() -> tuple[Dataset, np.ndarray]:

@@ -2,8 +2,10 @@
 
 1. Baseline: the geometric model (identifiable set only), judged by K-fold cross-validation.
 2. Candidates: every effect of :mod:`pincal.effects` on every joint, each identified together
-   with the geometry and judged by the same folds.
-3. Selection: the candidate with the lowest cross-validated RMS wins only if
+   with the geometry and judged by the same folds: first all of them on the problem linearised
+   at the geometric fit (:mod:`pincal.screening`, no nonlinear solve), then the
+   :data:`FINALISTS` best by the nonlinear calibration and cross-validation.
+3. Selection: the finalist with the lowest cross-validated RMS wins only if
    (a) it beats the baseline's cross-validated RMS by :data:`MIN_GAIN`, and
    (b) its fit on all poses passes an F-test against the baseline, ``p < α / (number of
    candidates)`` (Bonferroni, α = 0.01). Otherwise the answer is ``none``: a false cause is
@@ -19,7 +21,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy import stats
+from scipy.special import fdtrc
 
 from .calibration import Calibration
 from .crossval import cross_validate
@@ -27,11 +29,15 @@ from .data import Dataset
 from .effects import Extension, Payload, Stiffness, candidates, compliance_stiffness
 from .pipeline import calibrate
 from .robots import Robot
+from .screening import Linearised, Screen
+from .threads import limited
 
 #: The winner must beat the baseline's cross-validated RMS by at least this factor.
 MIN_GAIN = 1.1
 #: Family-wise significance level of the F-tests.
 ALPHA = 0.01
+#: Candidates judged by the nonlinear cross-validation after the linearised screen.
+FINALISTS = 3
 
 
 @dataclass(frozen=True)
@@ -40,17 +46,31 @@ class Candidate:
 
     Attributes:
         extension: the effect.
-        cv_rms_mm: cross-validated RMS [mm].
+        cv_rms_mm: cross-validated RMS [mm] (linearised for a candidate only screened).
         p_value: F-test of the extended fit on all poses against the baseline.
-        calibration: the extended fit on all poses.
+        calibration: the extended fit on all poses (None for a candidate only screened).
         q: the data's commanded configurations (N, n), to read a compliance as a stiffness.
+        screened_params: the effect's parameters of the linearised fit, when only screened.
     """
 
     extension: Extension
     cv_rms_mm: float
     p_value: float
-    calibration: Calibration = field(repr=False)
+    calibration: Calibration | None = field(repr=False)
     q: np.ndarray | None = field(default=None, repr=False, compare=False)
+    screened_params: np.ndarray | None = field(default=None, repr=False, compare=False)
+
+    @property
+    def screened(self) -> bool:
+        """Judged on the linearised problem only (:mod:`pincal.screening`)."""
+        return self.calibration is None
+
+    @property
+    def params(self) -> np.ndarray:
+        """The effect's parameters (in the extension's units)."""
+        if self.calibration is not None:
+            return self.calibration.effect_params
+        return np.zeros(self.extension.n_params) if self.screened_params is None else self.screened_params
 
     def stiffness(self, q: np.ndarray | None = None) -> Stiffness | None:
         """A ``joint_compliance`` coefficient read as a stiffness over ``q`` (default: the
@@ -58,7 +78,7 @@ class Candidate:
         q = self.q if q is None else q
         if self.extension.effect != "joint_compliance" or q is None:
             return None
-        return compliance_stiffness(self.extension, float(self.calibration.effect_params[0]), q)
+        return compliance_stiffness(self.extension, float(self.params[0]), q)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description (with a ``stiffness`` for a joint compliance, given ``q``)."""
@@ -71,9 +91,9 @@ class Candidate:
             "harmonic": ext.harmonic if ext.effect == "gear_harmonic" else None,
             "cv_rms_mm": self.cv_rms_mm,
             "p_value": self.p_value,
+            "judged": "linearised" if self.screened else "nonlinear",
             "parameters": {
-                n: {"value": float(v), "unit": u}
-                for n, v, u in zip(ext.names, self.calibration.effect_params, ext.units)
+                n: {"value": float(v), "unit": u} for n, v, u in zip(ext.names, self.params, ext.units)
             },
             **extra,
         }
@@ -100,6 +120,12 @@ class Diagnosis:
     q: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     @property
+    def extended(self) -> Calibration:
+        """The fit on all poses with the named cause (the baseline's when there is none)."""
+        named = self.cause.calibration if self.cause else None
+        return self.baseline if named is None else named
+
+    @property
     def extended_cv_rms_mm(self) -> float:
         """Cross-validated RMS of the extended model (the baseline's when there is no cause)."""
         return self.cause.cv_rms_mm if self.cause else self.baseline_cv_rms_mm
@@ -117,7 +143,7 @@ class Diagnosis:
                 f"no effect beyond the rigid model and noise: cross-validated RMS {b:.3f} mm "
                 f"(best candidate {self.candidates[0].extension.label}, not significant)"
             )
-        ext, p = self.cause.extension, self.cause.calibration.effect_params
+        ext, p = self.cause.extension, self.cause.params
         unit = ext.units[0]
         if ext.effect == "joint_compliance":
             what = self._compliance(self.cause, unit)
@@ -141,7 +167,7 @@ class Diagnosis:
 
     def _compliance(self, cause: Candidate, unit: str) -> str:
         """A named compliance: its coefficient and what it means as a stiffness."""
-        joint, c = cause.extension.joint, float(cause.calibration.effect_params[0])
+        joint, c = cause.extension.joint, float(cause.params[0])
         stiffness = cause.stiffness(self.q)
         if stiffness is None:
             return f"{joint}: error proportional to its gravity torque, c = {c:.3g} {unit}"
@@ -179,17 +205,28 @@ def _rss(cal: Calibration, data: Dataset) -> tuple[float, int]:
     return float(res @ res) * n_eq / len(res), n_eq
 
 
+def _f_value(rss0: float, rss1: float, extra: int, dof: int) -> float:
+    """p-value of the F-test of ``extra`` more parameters, ``dof`` residual degrees of freedom."""
+    if extra <= 0 or dof <= 0 or rss1 <= 0:
+        return 1.0
+    return float(fdtrc(extra, dof, ((rss0 - rss1) / extra) / (rss1 / dof)))
+
+
 def _f_test(base: Calibration, ext: Calibration, data: Dataset) -> float:
     rss0, n_eq = _rss(base, data)
     rss1, _ = _rss(ext, data)
     extra = ext.identifiability.n_identifiable - base.identifiability.n_identifiable
-    dof = n_eq - ext.identifiability.n_identifiable
-    if extra <= 0 or dof <= 0 or rss1 <= 0:
-        return 1.0
-    f = ((rss0 - rss1) / extra) / (rss1 / dof)
-    return float(stats.f.sf(f, extra, dof))
+    return _f_value(rss0, rss1, extra, n_eq - ext.identifiability.n_identifiable)
 
 
+def _f_screened(base: Calibration, data: Dataset, lin: Linearised, screen: Screen, extra: int) -> float:
+    """The F-test of a candidate only screened: its linearised fit's residual sum against the base's."""
+    rss0, n_eq = _rss(base, data)
+    rss1 = screen.rss * rss0 / max(float(lin.residuals @ lin.residuals), 1e-300)  # as _rss counts
+    return _f_value(rss0, rss1, extra, n_eq - base.identifiability.n_identifiable - extra)
+
+
+@limited
 def diagnose(
     robot: Robot,
     data: Dataset,
@@ -221,23 +258,38 @@ def diagnose(
     pool = candidates(robot, payload) if effects is None else effects
     base = calibrate(robot, data, model, measure, **options)  # first: says if the data falls short
     base_cv = cross_validate(robot, data, model, measure, folds, seed, **options)
-    options["partial"] = True  # an effect the data cannot tell from the geometry is no candidate
-    judged = []
+    lin = Linearised(base, data, folds, seed)
+    total = len(pool) + min(FINALISTS, len(pool))
+    screens = []
     for k, ext in enumerate(pool):
+        screen = lin.screen(ext)
+        if screen.identifiable:  # an effect the data cannot tell from the geometry is no candidate
+            screens.append((ext, screen))
+        if progress is not None:
+            progress(k + 1, total, ext.label)
+    screens.sort(key=lambda item: item[1].cv_rms_mm)
+    options["partial"] = True
+    finalists: list[Candidate] = []
+    for k, (ext, _) in enumerate(screens[:FINALISTS]):
         full = calibrate(robot, data, model, measure, extension=ext, **options)
+        if progress is not None:
+            progress(len(pool) + k + 1, total, f"{ext.label} (nonlinear)")
         if not full.identifiability.identifiable[
             full.model.n_params : full.model.n_params + ext.n_params
         ].all():
             continue
         cv = cross_validate(robot, data, model, measure, folds, seed, extension=ext, **options)
-        judged.append(Candidate(ext, cv.after.rms_mm, _f_test(base, full, data), full, data.q))
-        if progress is not None:
-            progress(k + 1, len(pool), ext.label)
-    judged.sort(key=lambda c: c.cv_rms_mm)
+        finalists.append(Candidate(ext, cv.after.rms_mm, _f_test(base, full, data), full, data.q))
+    finalists.sort(key=lambda c: c.cv_rms_mm)
+    screened = [
+        Candidate(ext, s.cv_rms_mm, _f_screened(base, data, lin, s, ext.n_params), None, data.q, s.params)
+        for ext, s in screens[FINALISTS:]
+    ]
+    judged = finalists + screened
     base_rms = base_cv.after.rms_mm
     cause = None
-    if judged:
-        best = judged[0]
+    if finalists:
+        best = finalists[0]
         if base_rms / best.cv_rms_mm >= MIN_GAIN and best.p_value < ALPHA / len(judged):
             cause = best
     return Diagnosis(base, base_rms, cause, tuple(judged), folds, data.q)
@@ -245,4 +297,4 @@ def diagnose(
 
 def extended_calibration(diagnosis: Diagnosis) -> Calibration:
     """The fit on all poses with the named cause (the baseline's when there is none)."""
-    return diagnosis.cause.calibration if diagnosis.cause else diagnosis.baseline
+    return diagnosis.extended

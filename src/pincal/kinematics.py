@@ -77,6 +77,11 @@ def skew(v: np.ndarray) -> np.ndarray:
     return out
 
 
+def stacked_dot(rot: np.ndarray, mat: np.ndarray) -> np.ndarray:
+    """``rot @ mat`` for stacked matrices (N, 3, k) and one matrix (k, m): a single BLAS call."""
+    return (rot.reshape(-1, rot.shape[2]) @ mat).reshape(rot.shape[0], 3, mat.shape[1])
+
+
 def axis_rotations(axis: np.ndarray, angles: np.ndarray) -> np.ndarray:
     """Rotations about a unit axis (3,) by angles (N,) [rad], Rodrigues' formula -> (N, 3, 3)."""
     k = skew(np.asarray(axis, dtype=float))
@@ -90,48 +95,67 @@ def forward(chain: Chain, q: np.ndarray) -> Frames:
     n_poses, n = q.shape
     rotations = np.empty((2 * n + 1, n_poses, 3, 3))
     translations = np.empty((2 * n + 1, n_poses, 3))
-    rot = np.broadcast_to(chain.placements[0].rotation, (n_poses, 3, 3))
-    pos = np.broadcast_to(chain.placements[0].translation, (n_poses, 3))
-    rotations[0], translations[0] = rot, pos
+    rotations[0], translations[0] = chain.placements[0].rotation, chain.placements[0].translation
+    rot, pos = rotations[0], translations[0]
     for j in range(n):
         v, w = chain.axes[j, :3], chain.axes[j, 3:]
-        if np.any(w):  # revolute joint through the frame origin
-            rot = rot @ axis_rotations(w, q[:, j])
+        if np.any(w):  # revolute joint through the frame origin: R · (I + s K + (1 - c) K²)
+            k = skew(w)
+            rot_k = stacked_dot(rot, k)
+            s, c = np.sin(q[:, j])[:, None, None], np.cos(q[:, j])[:, None, None]
+            rot = rot + s * rot_k + (1.0 - c) * stacked_dot(rot_k.reshape(-1, 3, 3), k)
         else:  # prismatic
-            pos = pos + (rot @ v) * q[:, j, None]
+            pos = pos + stacked_dot(rot, v[:, None])[:, :, 0] * q[:, j, None]
         rotations[2 * j + 1], translations[2 * j + 1] = rot, pos
-        c = chain.placements[j + 1]
-        pos = pos + rot @ c.translation
-        rot = rot @ c.rotation
+        c_next = chain.placements[j + 1]
+        pos = pos + stacked_dot(rot, c_next.translation[:, None])[:, :, 0]
+        rot = stacked_dot(rot, c_next.rotation)
         rotations[2 * j + 2], translations[2 * j + 2] = rot, pos
     return Frames(rotations, translations)
 
 
-def tip_jacobian(frames: Frames, twists: np.ndarray) -> np.ndarray:
+def twist_columns(
+    rot: np.ndarray, pos: np.ndarray, zeta: np.ndarray, point: np.ndarray, rotation: bool = True
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """Effect of right-perturbations ``exp(ζ ε)`` of frames on a point attached beyond them.
+
+    Args:
+        rot, pos: the perturbed frames, ``R`` (N, 3, 3) and ``p`` (N, 3) [m], or one frame.
+        zeta: local twists (6, m), order (v, ω).
+        point: the moved point (N, 3) [m], in the same axes as ``p``.
+        rotation: whether to return the angular velocity too.
+
+    Returns:
+        The point's velocity ``R ζ_v + (R ζ_ω) × (point - p)`` (N, 3, m) [m/unit] and the
+        angular velocity ``R ζ_ω`` (N, 3, m) [rad/unit] (None unless ``rotation``).
+    """
+    rot = np.ascontiguousarray(np.broadcast_to(rot, (len(point), 3, 3)))
+    arm = skew(point - pos) @ rot  # [lever]× R: v = R ζ_v - lever × (R ζ_ω)
+    v = stacked_dot(np.concatenate([rot, -arm], axis=2), zeta)
+    return v, stacked_dot(rot, zeta[3:]) if rotation else None
+
+
+def tip_jacobian(frames: Frames, twists: np.ndarray, point: np.ndarray | None = None) -> np.ndarray:
     """Tip Jacobian of right-perturbations given at chain positions.
 
     Args:
         frames: output of :func:`forward`.
         twists: (2n + 1, 6, p) local twist of each of ``p`` parameters at each position
             (zero where a parameter does not act).
+        point: the point whose velocity the rows give (N, 3) [m] (default: the tip's origin).
 
     Returns:
         (N, 6, p) LOCAL_WORLD_ALIGNED Jacobian of the tip: rows (v [m/unit], ω [rad/unit]).
     """
-    n_poses = frames.tip_translation.shape[0]
-    jac = np.zeros((n_poses, 6, twists.shape[2]))
-    tip = frames.tip_translation
+    point = frames.tip_translation if point is None else point
+    jac = np.zeros((len(point), 6, twists.shape[2]))
     for k in range(twists.shape[0]):
         cols = np.flatnonzero(np.any(twists[k] != 0.0, axis=0))
         if cols.size == 0:
             continue
-        rot = frames.rotations[k]
-        z = twists[k][:, cols]
-        w = rot @ z[3:]  # (N, 3, m)
-        lever = (tip - frames.translations[k])[:, :, None]  # (N, 3, 1)
-        v = rot @ z[:3] + np.cross(w, lever, axis=1)
+        v, w = twist_columns(frames.rotations[k], frames.translations[k], twists[k][:, cols], point)
         jac[:, :3, cols] += v
-        jac[:, 3:, cols] += w
+        jac[:, 3:, cols] += w  # type: ignore[arg-type]
     return jac
 
 
@@ -146,13 +170,6 @@ def joint_jacobian(chain: Chain, frames: Frames) -> np.ndarray:
     for j in range(n):
         twists[2 * j + 1, :, j] = chain.axes[j]
     return tip_jacobian(frames, twists)
-
-
-def joint_column(chain: Chain, frames: Frames, joint: int) -> np.ndarray:
-    """Tip Jacobian (N, 6) of one joint's value: the column ``joint`` of :func:`joint_jacobian`."""
-    twists = np.zeros((frames.rotations.shape[0], 6, 1))
-    twists[2 * joint + 1, :, 0] = chain.axes[joint]
-    return tip_jacobian(frames, twists)[:, :, 0]
 
 
 def right_twists(
@@ -179,3 +196,28 @@ def right_twists(
     for param, i, zeta in local:
         out[:, param] += suffixes[i].actInv(pin.Motion(zeta)).vector
     return out
+
+
+def log3(rot: np.ndarray) -> np.ndarray:
+    """``pin.log3`` of stacked rotations (N, 3, 3) -> rotation vectors (N, 3) [rad]."""
+    cos = np.clip((np.trace(rot, axis1=1, axis2=2) - 1.0) / 2.0, -1.0, 1.0)
+    angle = np.arccos(cos)
+    vee = np.stack([rot[:, 2, 1] - rot[:, 1, 2], rot[:, 0, 2] - rot[:, 2, 0], rot[:, 1, 0] - rot[:, 0, 1]], 1)
+    small = angle < 1e-4  # θ / (2 sin θ) by its series
+    factor = np.where(small, 0.5 + angle**2 / 12.0, angle / (2.0 * np.sin(np.where(small, 1.0, angle))))
+    out = factor[:, None] * vee
+    for p in np.flatnonzero(angle > np.pi - 1e-2):  # near a half turn, R - Rᵀ says too little
+        out[p] = pin.log3(rot[p])
+    return out
+
+
+def jlog3(rot: np.ndarray, log: np.ndarray | None = None) -> np.ndarray:
+    """``pin.Jlog3`` of stacked rotations (N, 3, 3) -> (N, 3, 3), given or computing their logs."""
+    log = log3(rot) if log is None else log
+    angle = np.linalg.norm(log, axis=1)
+    small = angle < 1e-2  # the closed form cancels below; the series' next term is θ⁴/30240
+    safe = np.where(small, 1.0, angle)
+    closed = 1.0 / safe**2 - (1.0 + np.cos(safe)) / (2.0 * safe * np.sin(safe))
+    coef = np.where(small, 1.0 / 12.0 + angle**2 / 720.0, closed)
+    k = skew(log)
+    return np.eye(3) + 0.5 * k + coef[:, None, None] * (k @ k)

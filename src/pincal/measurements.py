@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from itertools import combinations
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -27,10 +28,10 @@ import pinocchio as pin
 from .data import Dataset
 from .effects import Extension
 from .errors import DataError
-from .kinematics import Frames, forward, joint_column, skew, tip_jacobian
+from .kinematics import Chain, Frames, forward, jlog3, log3, stacked_dot, twist_columns
 from .models import Model
+from .options import MEASURES
 
-MEASURES = ("position", "pose", "distance")
 #: Default weight of orientation residuals [m/rad]: 1 mrad counts as 0.1 mm.
 ROTATION_WEIGHT = 0.1
 
@@ -149,6 +150,7 @@ class Problem:
                 data.points[self.pairs[:, 0]] - data.points[self.pairs[:, 1]], axis=1
             )
         self.measured_rotations = data.rotations() if measurement.kind == "pose" else np.empty((0, 3, 3))
+        self._frames: tuple[Any, Any] = (None, None)  # the last θ's frames
 
     @property
     def n_params(self) -> int:
@@ -175,99 +177,137 @@ class Problem:
         q[:, self.extension.index] += self.regressors @ theta[self.model.n_params : self.n_model]
         return q
 
-    def target_frames(self, theta: np.ndarray) -> tuple[Frames, np.ndarray, np.ndarray]:
-        """Chain frames, ``base_R_target`` (N, 3, 3) and ``base_p_target`` (N, 3) [m]."""
-        x, _, tool = self.split(theta)
-        frames = forward(self.model.chain(x[: self.model.n_params]), self.reached(theta))
-        rot = frames.tip_rotation @ tool.rotation
-        pos = frames.tip_translation + frames.tip_rotation @ tool.translation
+    def target_frames(
+        self, theta: np.ndarray, in_instrument: bool = False
+    ) -> tuple[Frames, np.ndarray, np.ndarray]:
+        """Chain frames, ``R_target`` (N, 3, 3) and ``p_target`` (N, 3) [m], in base axes (or in
+        the instrument's, ``in_instrument``)."""
+        key = (theta.tobytes(), in_instrument)
+        if self._frames[0] == key:  # a solver asks for residuals and Jacobian at the same θ
+            return self._frames[1]
+        x, reg, tool = self.split(theta)
+        chain = self.model.chain(x[: self.model.n_params])
+        if in_instrument:
+            chain = Chain((reg * chain.placements[0], *chain.placements[1:]), chain.axes)
+        frames = forward(chain, self.reached(theta))
+        rot = stacked_dot(frames.tip_rotation, tool.rotation)
+        pos = frames.tip_translation + stacked_dot(frames.tip_rotation, tool.translation[:, None])[:, :, 0]
+        self._frames = (key, (frames, rot, pos))
         return frames, rot, pos
 
     def predict(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Predicted target positions (N, 3) [m] and rotations (N, 3, 3) in the instrument frame."""
-        _, reg, _ = self.split(theta)
-        _, rot, pos = self.target_frames(theta)
-        return pos @ reg.rotation.T + reg.translation, reg.rotation @ rot
+        _, rot, pos = self.target_frames(theta, in_instrument=True)
+        return pos, rot
 
     def joint_sensitivity(self, theta: np.ndarray, joint: int) -> np.ndarray:
         """How each pose's measured point moves per unit of joint ``joint`` (N, 3), instrument frame."""
-        x, reg, _ = self.split(theta)
-        frames, _, pos = self.target_frames(theta)
-        jac = joint_column(self.model.chain(x[: self.model.n_params]), frames, joint)
-        return (jac[:, :3] + np.cross(jac[:, 3:], pos - frames.tip_translation)) @ reg.rotation.T
+        frames, _, pos = self.target_frames(theta, in_instrument=True)
+        k = 2 * joint + 1
+        zeta = self.model.chain(theta[: self.model.n_params]).axes[joint][:, None]
+        return twist_columns(frames.rotations[k], frames.translations[k], zeta, pos)[0][:, :, 0]
 
     def residuals(self, theta: np.ndarray) -> np.ndarray:
         """Stacked residuals [m] (see the module docstring)."""
-        return self._evaluate(theta, jacobian=False)[0]
+        return self._evaluate(theta, None)[0]
 
-    def jacobian(self, theta: np.ndarray) -> np.ndarray:
-        """Analytic Jacobian of :meth:`residuals` with respect to θ."""
-        return self._evaluate(theta, jacobian=True)[1]
+    def jacobian(self, theta: np.ndarray, free: np.ndarray | None = None) -> np.ndarray:
+        """Analytic Jacobian of :meth:`residuals` with respect to θ (its columns ``free``, a mask
+        or indices, if given: only those are computed)."""
+        cols = np.arange(self.n_params) if free is None else np.arange(self.n_params)[free]
+        return self._evaluate(theta, cols)[1]
 
-    def _evaluate(self, theta: np.ndarray, jacobian: bool) -> tuple[np.ndarray, np.ndarray]:
-        """Residuals and, if asked, their Jacobian (else an empty array)."""
+    def _target_jacobian(
+        self,
+        theta: np.ndarray,
+        cols: np.ndarray,
+        frames: Frames,
+        target: tuple[np.ndarray, np.ndarray],
+        to_log: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """Jacobian of the target, for the unknowns ``cols``: each is a right-perturbation of a
+        frame. Rows: the target's velocity (N, 3, c) in the axes of ``frames``, then, given
+        ``to_log`` (N, 3, 3), that map of its angular velocity (N, 3, c)."""
+        m, n_geo = self.measurement, self.model.n_params
+        rot, pos = target
+        rotation = to_log is not None
+        out = np.zeros((len(self.data), 6 if rotation else 3, len(cols)))
+        jac_v, jac_w = out[:, :3], out[:, 3:]
+
+        def columns(k_rot: np.ndarray, k_pos: np.ndarray, zeta: np.ndarray) -> tuple[np.ndarray, Any]:
+            v, _ = twist_columns(k_rot, k_pos, zeta, pos, rotation=False)
+            if to_log is None:
+                return v, None
+            return v, stacked_dot(to_log @ k_rot, zeta[3:])
+
+        def add(k_rot: np.ndarray, k_pos: np.ndarray, zeta: np.ndarray, where: np.ndarray) -> None:
+            v, w = columns(k_rot, k_pos, zeta)
+            at: slice | np.ndarray = where  # a slice when it can be: fancy indexing costs more
+            if where[-1] - where[0] == len(where) - 1:
+                at = slice(int(where[0]), int(where[-1]) + 1)
+            jac_v[:, :, at] += v
+            if w is not None:
+                jac_w[:, :, at] += w
+
+        geo = np.flatnonzero(cols < n_geo)
+        if geo.size:
+            twists = self.model.twists(theta[:n_geo])[:, :, cols[geo]]
+            for k in range(twists.shape[0]):
+                acting = np.flatnonzero(np.any(twists[k] != 0.0, axis=0))
+                if acting.size:
+                    add(frames.rotations[k], frames.translations[k], twists[k][:, acting], geo[acting])
+        ext = np.flatnonzero((cols >= n_geo) & (cols < self.n_model))
+        if ext.size and self.extension is not None:
+            k, index = 2 * self.extension.index + 1, self.extension.index
+            axis = self.model.chain(theta[:n_geo]).axes[index]  # in the model's joint frame
+            zeta = axis[:, None] * np.ones(ext.size)
+            # the joint's column, times each pose's regressor: written as a perturbation per column
+            v, w = columns(frames.rotations[k], frames.translations[k], zeta)
+            regressors = self.regressors[:, cols[ext] - n_geo][:, None, :]
+            jac_v[:, :, ext] = v * regressors
+            if w is not None:
+                jac_w[:, :, ext] = w * regressors
+        k = self.n_model
+        if m.n_instrument:  # instrument_T_base · exp(ρ): a perturbation before the chain
+            here = np.flatnonzero((cols >= k) & (cols < k + 6))
+            _, reg, _ = self.split(theta)
+            if here.size:
+                zeta = pin.Jexp6(pin.Motion(theta[k : k + 6]))[:, cols[here] - k]
+                add(reg.rotation, reg.translation, zeta, here)
+            k += 6
+        here = np.flatnonzero(cols >= k)
+        if here.size and m.n_tool == 3:
+            jac_v[:, :, here] = frames.tip_rotation[:, :, cols[here] - k]
+        elif here.size and m.n_tool == 6:
+            add(rot, pos, pin.Jexp6(pin.Motion(theta[k : k + 6]))[:, cols[here] - k], here)
+        return out
+
+    def _evaluate(self, theta: np.ndarray, cols: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+        """Residuals and, if columns ``cols`` are asked for, their Jacobian (else an empty array)."""
         m = self.measurement
-        x, reg, tool = self.split(theta)
-        frames, rot, pos = self.target_frames(theta)
-        n = len(self.data)
-        jac_target = np.empty((0, 6, self.n_params))
-        if jacobian:
-            # LOCAL_WORLD_ALIGNED Jacobian of the target frame: model columns, then tool columns.
-            jt = np.zeros((n, 6, self.n_params))
-            n_geo = self.model.n_params
-            jt[:, :, :n_geo] = tip_jacobian(frames, self.model.twists(x[:n_geo]))
-            if self.extension is not None:
-                joint = self.extension.index
-                column = joint_column(self.model.chain(x[:n_geo]), frames, joint)
-                jt[:, :, n_geo : self.n_model] = column[:, :, None] * self.regressors[:, None, :]
-            lever = pos - frames.tip_translation
-            jt[:, :3, : self.n_model] += np.cross(jt[:, 3:, : self.n_model], lever[:, :, None], axis=1)
-            k = self.n_model + m.n_instrument
-            if m.n_tool == 3:
-                jt[:, :3, k : k + 3] = frames.tip_rotation
-            elif m.n_tool == 6:
-                local = pin.Jexp6(pin.Motion(theta[k : k + 6]))
-                jt[:, :3, k : k + 6] = rot @ local[:3]
-                jt[:, 3:, k : k + 6] = rot @ local[3:]
-            jac_target = jt
-
+        frames, rot, pos = self.target_frames(theta, in_instrument=m.kind != "distance")
         if m.kind == "distance":
             i, j = self.pairs[:, 0], self.pairs[:, 1]
             diff = pos[i] - pos[j]
             dist = np.linalg.norm(diff, axis=1)
             res = dist - self.measured_distances
-            if not jacobian:
-                return res, np.empty((0, self.n_params))
+            if cols is None:
+                return res, np.empty((0, 0))
+            jac_v = self._target_jacobian(theta, cols, frames, (rot, pos))
             u = diff / np.where(dist > 0, dist, 1.0)[:, None]  # a pose paired with itself: no direction
-            jac = np.einsum("pk,pkc->pc", u, jac_target[i, :3] - jac_target[j, :3])
-            return res, jac
+            return res, np.einsum("pk,pkc->pc", u, jac_v[i] - jac_v[j])
 
-        pos_i = pos @ reg.rotation.T + reg.translation
-        res_p = pos_i - self.data.points
+        res_p = pos - self.data.points
         if m.kind == "position":
             res = res_p.reshape(-1)
         else:
-            rot_i = reg.rotation @ rot
-            err = np.transpose(self.measured_rotations, (0, 2, 1)) @ rot_i
-            res_r = np.array([pin.log3(e) for e in err])
-            res = np.concatenate([res_p, m.rotation_weight * res_r], axis=1).reshape(-1)
-        if not jacobian:
-            return res, np.empty((0, self.n_params))
-
-        jac_p = reg.rotation @ jac_target[:, :3]  # (N, 3, P)
-        if m.n_instrument:
-            k = self.n_model
-            local = pin.Jexp6(pin.Motion(theta[k : k + 6]))
-            base_twist = np.concatenate([np.broadcast_to(np.eye(3), (n, 3, 3)), -skew(pos)], axis=2)
-            jac_p[:, :, k : k + 6] = reg.rotation @ (base_twist @ local)
+            err = np.transpose(self.measured_rotations, (0, 2, 1)) @ rot
+            log = log3(err)
+            res = np.concatenate([res_p, m.rotation_weight * log], axis=1).reshape(-1)
+        if cols is None:
+            return res, np.empty((0, 0))
         if m.kind == "position":
-            return res, jac_p.reshape(-1, self.n_params)
-        jac_w = reg.rotation @ jac_target[:, 3:]  # instrument-frame rotation of the target
-        if m.n_instrument:
-            k = self.n_model
-            jac_w[:, :, k : k + 6] = reg.rotation @ pin.Jexp6(pin.Motion(theta[k : k + 6]))[3:]
-        rot_i = reg.rotation @ rot
-        for p in range(n):
-            jac_w[p] = pin.Jlog3(err[p]) @ rot_i[p].T @ jac_w[p]
-        jac = np.concatenate([jac_p, m.rotation_weight * jac_w], axis=1)
-        return res, jac.reshape(-1, self.n_params)
+            return res, self._target_jacobian(theta, cols, frames, (rot, pos)).reshape(-1, len(cols))
+        # d log3(R_measᵀ R) = Jlog3 · Rᵀ · (angular velocity in the instrument's axes)
+        to_log = m.rotation_weight * (jlog3(err, log) @ np.transpose(rot, (0, 2, 1)))
+        return res, self._target_jacobian(theta, cols, frames, (rot, pos), to_log).reshape(-1, len(cols))

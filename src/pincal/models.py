@@ -28,10 +28,10 @@ import pinocchio as pin
 
 from .errors import PincalError
 from .kinematics import Chain
+from .options import MODELS
 from .robots import Robot
 from .twists import Twists, left_jacobian, nominal_twists
 
-MODELS = ("placements", "poe", "mdh", "offsets")
 _PLACEMENT_COMPONENTS = (("tx", "m"), ("ty", "m"), ("tz", "m"), ("rx", "rad"), ("ry", "rad"), ("rz", "rad"))
 
 

@@ -18,8 +18,8 @@ from typing import Any
 import numpy as np
 
 from .measurements import Problem
+from .options import THRESHOLD
 
-THRESHOLD = 6.0  # robust standard deviations above the median pose
 MAX_FRACTION = 0.2  # of the poses, at most
 MIN_POSES = 8  # fewer poses: no screen (too few for a robust spread)
 

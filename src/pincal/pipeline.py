@@ -22,8 +22,10 @@ from .errors import DataError
 from .identifiability import RCOND, Identifiability
 from .measurements import ROTATION_WEIGHT
 from .models import Model
+from .options import LOSSES
 from .robots import Robot
-from .solver import LOSSES, Setup, assess, identifiable_set, register, screen_outliers, set_up, solve
+from .solver import Setup, assess, identifiable_set, register, screen_outliers, set_up, solve
+from .threads import limited
 
 Fit = tuple[np.ndarray, np.ndarray, Identifiability, Any]
 
@@ -82,6 +84,7 @@ def _kept_pairs(pairs: str | np.ndarray, n: int, keep: np.ndarray) -> str | np.n
     return mapped[(mapped >= 0).all(axis=1)]
 
 
+@limited
 def calibrate(
     robot: Robot,
     data: Dataset,

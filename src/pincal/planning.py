@@ -43,6 +43,7 @@ from .kinematics import Chain, forward
 from .measurements import MEASURES, ROTATION_WEIGHT, Measurement, Problem
 from .models import make_model
 from .robots import Robot
+from .threads import limited
 
 
 @dataclass(frozen=True)
@@ -230,6 +231,7 @@ def _design(rows: _Rows, q: np.ndarray, test_q: np.ndarray) -> Design:
     )
 
 
+@limited
 def plan_poses(
     robot: Robot,
     n_poses: int,

@@ -47,14 +47,14 @@ def plot_diagnosis(diagnosis: Diagnosis, data: Dataset, path: str | Path) -> Pat
     else:
         x, xlabel = data.q[:, j], f"{ext.joint} angle [rad]"
     order = np.argsort(x)
-    effect = ext.regressors(data.q) @ diagnosis.cause.calibration.effect_params
+    effect = ext.regressors(data.q) @ diagnosis.cause.params
     fig = Figure(figsize=(10, 4))
     axes = fig.subplots(1, 2, sharey=True)
     for ax, cal, title in (
         (axes[0], diagnosis.baseline, f"rigid model (CV RMS {diagnosis.baseline_cv_rms_mm:.3f} mm)"),
         (
             axes[1],
-            diagnosis.cause.calibration,
+            diagnosis.extended,
             f"with {ext.label} (CV RMS {diagnosis.extended_cv_rms_mm:.3f} mm)",
         ),
     ):

@@ -25,17 +25,7 @@ import numpy as np
 import pinocchio as pin
 
 from .errors import RobotError
-
-#: Bundled robots: name -> (source, path inside the source, default tip frame).
-BUNDLED: dict[str, tuple[str, str, str]] = {
-    "ur3": ("example-robot-data", "ur_description/urdf/ur3_robot.urdf", "tool0"),
-    "ur5": ("example-robot-data", "ur_description/urdf/ur5_robot.urdf", "tool0"),
-    "ur10": ("example-robot-data", "ur_description/urdf/ur10_robot.urdf", "tool0"),
-    "panda": ("example-robot-data", "panda_description/urdf/panda.urdf", "panda_hand_tcp"),
-    "z1": ("example-robot-data", "z1_description/urdf/z1.urdf", "link06"),
-    "mrres5": ("pincal", "mrres5.urdf", "target"),
-    "zu3": ("pincal", "jaka_zu3.urdf", "tool0"),
-}
+from .options import BUNDLED
 
 _FRAME_PREFERENCE = (pin.FrameType.BODY, pin.FrameType.FIXED_JOINT, pin.FrameType.OP_FRAME)
 

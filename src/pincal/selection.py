@@ -1,14 +1,13 @@
 """Which model parameters to fit: forward selection scored by cross-validation on the fitted poses.
 
-With few poses, fitting every identifiable parameter fits the noise and the effects no rigid model
-holds, and predicts new poses worse than a smaller model. :func:`select_parameters` starts from
-the registration and tool alone (and any extension) and adds, one at a time, the model parameter
-that gives the lowest cross-validated RMS, until no candidate adds rank. The chosen set is the
-shortest prefix of that path whose cross-validated RMS is within ``min_gain`` (relative) of the
-path's minimum, unless fitting every parameter scores within ``keep_all`` (5 %) of it: the
-prefix's score is biased low by the choosing, so a smaller model must win clearly (114 Panda
-poses: the full model predicts 7 % better than the prefix, its score only 1.4 % above the
-lowest; 37 TIAGo poses: the prefix wins, 2.28 against 4.38 mm). Only the data given is used.
+With few poses, fitting every identifiable parameter fits the noise and the effects no rigid model holds, and
+predicts new poses worse than a smaller model. :func:`select_parameters` starts from the registration and
+tool alone (and any extension) and adds, one at a time, the model parameter that gives the lowest cross-
+validated RMS, until no candidate adds rank. The chosen set is the shortest prefix of that path whose cross-
+validated RMS is within ``min_gain`` (relative) of the path's minimum, unless fitting every parameter scores
+within ``keep_all`` (5 %) of it: the prefix's score is biased low by the choosing, so a smaller model must
+win clearly (114 Panda poses: the full model predicts 7 % better than the prefix, its score only 1.4 % above
+the lowest; 37 TIAGo poses: the prefix wins, 2.28 against 4.38 mm).
 
 Every candidate is scored in closed form on the problem linearised at the registration-only fit.
 With ``H`` the hat matrix of the current columns and ``e`` the fit's residual, the residual of
@@ -38,6 +37,7 @@ from .identifiability import RCOND
 from .measurements import all_pairs
 from .robots import Robot
 from .solver import SETUP_KEYS, Setup, register, set_up
+from .threads import limited
 
 #: Take the shortest prefix of the path within this fraction of its lowest cross-validated RMS...
 MIN_GAIN = 0.01
@@ -249,6 +249,7 @@ def choose_step(path: list[SelectionStep], complete: bool, min_gain: float, keep
     return int(np.flatnonzero(scores <= (1.0 + min_gain) * scores.min())[0])
 
 
+@limited
 def select_parameters(
     robot: Robot,
     data: Dataset,

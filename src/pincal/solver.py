@@ -36,13 +36,13 @@ from .effects import Extension
 from .errors import DataError, IdentifiabilityError
 from .evaluation import evaluate
 from .identifiability import RCOND, Identifiability, analyse, check_rank, parameter_scale
+from .lm import levenberg_marquardt
 from .measurements import ROTATION_WEIGHT, Measurement, Problem, gao_pairs
 from .models import Model, make_model
 from .outliers import find_outliers
 from .registration import initial_measurement
 from .robots import Robot
 
-LOSSES = ("linear", "soft_l1", "huber", "cauchy")
 #: Keyword arguments of :func:`calibrate` that describe the measurement set-up (see :func:`set_up`).
 SETUP_KEYS = ("instrument_T_base", "tool", "rotation_weight", "pairs")
 
@@ -160,16 +160,24 @@ def solve(
         out[free] = sub
         return out
 
-    n_res = len(problem.residuals(theta))
-    method = "lm" if loss == "linear" and n_res >= free.sum() else "trf"
+    def residuals(sub: np.ndarray) -> np.ndarray:
+        return problem.residuals(full(sub))
+
+    def jacobian(sub: np.ndarray) -> np.ndarray:
+        return problem.jacobian(full(sub), free)
+
+    x_scale = setup.scale[free] * 1e-3
+    if loss == "linear" and len(problem.residuals(theta)) >= free.sum():
+        result = levenberg_marquardt(residuals, jacobian, theta[free], x_scale, max_nfev=200)
+        return full(result.x), result
     result = least_squares(
-        lambda sub: problem.residuals(full(sub)),
+        residuals,
         theta[free],
-        jac=lambda sub: problem.jacobian(full(sub))[:, free],
-        method=method,
+        jac=jacobian,
+        method="trf",
         loss=loss,
         f_scale=f_scale,
-        x_scale=setup.scale[free] * 1e-3,
+        x_scale=x_scale,
         xtol=1e-12,
         ftol=1e-12,
         gtol=1e-12,
@@ -278,7 +286,7 @@ def assess(
 
     std = np.zeros(problem.n_params)
     free = ident.identifiable
-    jac = problem.jacobian(theta)[:, free] * setup.scale[free]
+    jac = problem.jacobian(theta, free) * setup.scale[free]
     res = problem.residuals(theta)
     sigma2 = float(res @ res) / (len(res) - int(free.sum()))
     std[free] = np.sqrt(np.clip(np.diag(np.linalg.pinv(jac.T @ jac) * sigma2), 0.0, None)) * setup.scale[free]

@@ -22,9 +22,10 @@ import pinocchio as pin
 
 from .data import UNITS, check_quaternions, csv_columns, read_table
 from .errors import DataError
+from .options import ORIENTATIONS
 from .robots import Robot
+from .threads import limited
 
-ORIENTATIONS = ("default", "z", "zx")
 #: Shortest accepted orientation move [m].
 MIN_MOVE = 0.005
 #: Coefficient matrices worse conditioned than this get a warning.
@@ -178,6 +179,7 @@ def tool_orientation(
     return np.column_stack([n, o, a]), warnings
 
 
+@limited
 def calibrate_tool(
     rotations: np.ndarray, positions: np.ndarray, orientation: str = "default", scale: float = 1.0
 ) -> ToolCalibration:

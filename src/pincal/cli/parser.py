@@ -7,17 +7,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
-import numpy as np
-
-from ..data import UNITS
-from ..effects import Payload
 from ..errors import PincalError
-from ..measurements import MEASURES
-from ..models import MODELS
-from ..outliers import THRESHOLD
-from ..robots import BUNDLED
-from ..solver import LOSSES
-from ..tool import ORIENTATIONS
+from ..options import BUNDLED, LOSSES, MEASURES, MODELS, ORIENTATIONS, THRESHOLD, UNITS
 
 
 class _Parser(argparse.ArgumentParser):
@@ -45,7 +36,15 @@ def _seed(text: str) -> int:
     return _whole(text, 0, "a seed")
 
 
-def _vector3(text: str) -> np.ndarray:
+def _payload(text: str) -> Any:
+    from ..effects import Payload  # here: --help does not load Pinocchio
+
+    return Payload.parse(text)
+
+
+def _vector3(text: str) -> Any:
+    import numpy as np  # here: --help does not load NumPy
+
     try:
         values = np.array([float(v) for v in text.split(",")])
     except ValueError:
@@ -58,6 +57,12 @@ def _vector3(text: str) -> np.ndarray:
 def build_parser() -> argparse.ArgumentParser:
     """The ``pincal`` command line: one sub-command per task."""
     parser = _Parser(prog="pincal", description="Kinematic calibration of robot arms on Pinocchio.")
+    parser.add_argument(
+        "--threads",
+        type=lambda text: _whole(text, 0, "--threads"),
+        default=None,
+        help="BLAS threads (default: $PINCAL_THREADS, else 1; 0 leaves BLAS as it is)",
+    )
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     for add in (_add_calibrate, _add_diagnose, _add_demo, _add_tcp, _add_compensate, _add_plan, _add_twists):
         add(sub)
@@ -240,7 +245,7 @@ def _add_data_options(cmd: argparse.ArgumentParser) -> None:
         "--tool-point", type=_vector3, help="the measured point on the tip frame, X,Y,Z (data units)"
     )
     cmd.add_argument(
-        "--payload", type=Payload.parse, metavar="MASS,X,Y,Z", help="load on the tip [kg; m in the tip frame]"
+        "--payload", type=_payload, metavar="MASS,X,Y,Z", help="load on the tip [kg; m in the tip frame]"
     )
     cmd.add_argument("--loss", choices=LOSSES, default="linear", help="robust loss for outliers")
     cmd.add_argument(

@@ -1,0 +1,78 @@
+"""BLAS threads: one by default.
+
+pincal's dense algebra is small (a few thousand rows of some fifty columns, 6 × 6 and 3 × 3
+blocks): starting and synchronising BLAS threads costs more than it saves. Measured on a 2-core
+machine (``benchmarks/speed.py``), OpenBLAS's default threads made ``calibrate`` on 100 poses
+7-10 × slower; a second thread only pays off from about 30,000 poses (the QR of a
+100,000 × 50 Jacobian). So the library's entry points (:func:`pincal.calibrate`,
+:func:`pincal.diagnose.diagnose`, ...) and the command line run with one BLAS thread unless told
+otherwise:
+
+- the environment variable ``PINCAL_THREADS``: a number of threads, or ``0`` to leave BLAS as
+  it is (its own default or the caller's ``threadpoolctl`` limits);
+- ``pincal --threads N`` on the command line; :func:`blas_threads` in code.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from typing import Any, TypeVar
+
+from .errors import PincalError
+
+#: Environment variable with the number of BLAS threads (0: leave BLAS as it is).
+ENV = "PINCAL_THREADS"
+#: Threads when neither the call nor the environment says.
+DEFAULT = 1
+
+F = TypeVar("F", bound=Callable[..., Any])
+_controller: list[Any] = []  # threadpoolctl's controller, made at the first limited call
+
+
+def thread_count(value: int | str | None = None) -> int:
+    """The BLAS threads to use: ``value``, else ``$PINCAL_THREADS``, else 1 (0: unlimited).
+
+    Raises:
+        PincalError: not a whole number of 0 or more.
+    """
+    text = os.environ.get(ENV, "") if value is None else str(value)
+    if text.strip() == "":
+        return DEFAULT
+    try:
+        count = int(text)
+    except ValueError:
+        raise PincalError(
+            f"{ENV}={text!r}: give a number of BLAS threads, or 0 to leave BLAS as it is"
+        ) from None
+    if count < 0:
+        raise PincalError(f"{ENV}={text!r}: give a number of BLAS threads, or 0 to leave BLAS as it is")
+    return count
+
+
+@contextmanager
+def blas_threads(value: int | str | None = None) -> Iterator[None]:
+    """Run the block with ``value`` BLAS threads (default: :func:`thread_count`)."""
+    count = thread_count(value)
+    if count == 0:
+        yield
+        return
+    if not _controller:
+        from threadpoolctl import ThreadpoolController  # here: after NumPy and SciPy are loaded
+
+        _controller.append(ThreadpoolController())
+    with _controller[0].limit(limits=count, user_api="blas"):
+        yield
+
+
+def limited(func: F) -> F:
+    """Decorate a library entry point to run with :func:`blas_threads`' default."""
+
+    @functools.wraps(func)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        with blas_threads():
+            return func(*args, **kwargs)
+
+    return wrapper  # type: ignore[return-value]

@@ -1,0 +1,148 @@
+"""The fast paths give what the plain ones give.
+
+- :func:`pincal.kinematics.log3` and :func:`~pincal.kinematics.jlog3`, vectorised over poses,
+  equal Pinocchio's ``log3`` and ``Jlog3`` from tiny angles to nearly half a turn;
+- ``Problem.jacobian(theta, free)`` is the full Jacobian's columns ``free``, for every measure;
+- the linearised screen of :mod:`pincal.screening` ranks a hidden effect first and its
+  cross-validated RMS is close to the nonlinear cross-validation's;
+- one BLAS thread by default, ``PINCAL_THREADS`` and ``--threads`` to change it;
+- ``import pincal`` and ``pincal --help`` load neither NumPy nor Pinocchio.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+import pincal
+from pincal.crossval import cross_validate
+from pincal.effects import Extension
+from pincal.kinematics import jlog3, log3
+from pincal.screening import Linearised
+from pincal.simulation import hide_effect
+from pincal.solver import set_up
+from pincal.threads import blas_threads, thread_count
+
+
+def _rotations(seed: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    scales = (1e-9, 1e-6, 1e-3, 5e-2, 1.0, 3.0)
+    vectors = np.concatenate([rng.normal(size=(20, 3)) * s for s in scales])
+    vectors[-10:] *= (np.pi - 2e-3) / np.linalg.norm(vectors[-10:], axis=1, keepdims=True)  # near π
+    return np.array([pin.exp3(v) for v in vectors])
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_log3_and_jlog3_equal_pinocchio(seed: int) -> None:
+    rot = _rotations(seed)
+    expected = np.array([pin.log3(r) for r in rot])
+    assert np.abs(log3(rot) - expected).max() < 1e-9  # [rad], angles up to π
+    # Pinocchio's closed form loses digits below 1e-3 rad, where jlog3 uses its series.
+    assert np.abs(jlog3(rot) - np.array([pin.Jlog3(r) for r in rot])).max() < 1e-8
+
+
+@pytest.mark.parametrize("measure", ["position", "pose", "distance"])
+def test_jacobian_columns_are_the_full_jacobians(get_robot, measure: str) -> None:
+    robot = get_robot("panda")
+    _, fit, _ = pincal.simulate(robot, n_fit=15, n_test=0, seed=4, rot_noise=1e-3)
+    ext = Extension.parse(robot, "joint_compliance:panda_joint2")
+    setup = set_up(robot, fit, "poe", measure, extension=ext)
+    problem = setup.problem
+    theta = problem.initial_theta() + np.random.default_rng(5).normal(0.0, 1e-3, problem.n_params)
+    full = problem.jacobian(theta)
+    free = np.random.default_rng(6).random(problem.n_params) < 0.5
+    assert free.sum() > 5
+    assert np.array_equal(problem.jacobian(theta, free), full[:, free])
+    assert np.array_equal(problem.jacobian(theta, np.flatnonzero(free)), full[:, free])
+
+
+def test_linearised_screen_matches_the_nonlinear_cross_validation(get_robot) -> None:
+    robot = get_robot("ur5")
+    truth, fit, _ = pincal.simulate(robot, n_fit=60, n_test=0, seed=3)
+    hidden = Extension.parse(robot, "joint_compliance:shoulder_lift_joint")
+    truth = hide_effect(truth, hidden, fit.q, 4e-4, seed=3)
+    fit = truth.measure(fit.q, 3e-5, None, seed=5)
+    base = pincal.calibrate(robot, fit)
+    lin = Linearised(base, fit, folds=5, seed=0)
+    decoy = Extension.parse(robot, "encoder_scale:wrist_2_joint")
+    screens = {ext.label: lin.screen(ext) for ext in (hidden, decoy)}
+    plain = lin.screen()
+    assert screens[hidden.label].cv_rms_mm < 0.7 * plain.cv_rms_mm
+    assert screens[hidden.label].cv_rms_mm < screens[decoy.label].cv_rms_mm
+    nonlinear = cross_validate(robot, fit, "placements", None, 5, 0, extension=hidden).after.rms_mm
+    assert screens[hidden.label].cv_rms_mm == pytest.approx(nonlinear, rel=0.05)
+    no_effect = cross_validate(robot, fit, "placements", None, 5, 0).after.rms_mm
+    assert plain.cv_rms_mm == pytest.approx(no_effect, rel=0.05)
+    assert screens[hidden.label].params[0] == pytest.approx(truth.effect[0], rel=0.2)
+
+
+def _blas_threads() -> int:
+    from threadpoolctl import threadpool_info
+
+    return max(lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas")
+
+
+def test_one_blas_thread_by_default(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv("PINCAL_THREADS", raising=False)
+    assert thread_count() == 1
+    with blas_threads():
+        assert _blas_threads() == 1
+    monkeypatch.setenv("PINCAL_THREADS", "2")
+    assert thread_count() == 2
+    with blas_threads():
+        assert _blas_threads() == 2
+    monkeypatch.setenv("PINCAL_THREADS", "0")
+    assert thread_count() == 0
+    for bad in ("-1", "two", "1.5"):
+        monkeypatch.setenv("PINCAL_THREADS", bad)
+        with pytest.raises(pincal.PincalError, match="PINCAL_THREADS"):
+            thread_count()
+
+
+def test_help_loads_no_numpy() -> None:
+    code = (
+        "import sys, pincal, pincal.cli.parser\n"
+        "pincal.cli.parser.build_parser().format_help()\n"
+        "print(sorted(m for m in ('numpy', 'pinocchio', 'scipy') if m in sys.modules))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
+
+
+def test_cli_threads_option_is_checked() -> None:
+    out = subprocess.run(
+        [sys.executable, "-m", "pincal.cli", "--threads", "-2", "demo"], capture_output=True, text=True
+    )
+    assert out.returncode == 2
+    assert out.stderr.startswith("pincal: error:") and "--threads" in out.stderr
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_levenberg_marquardt_finds_least_squares_minimum(seed: int) -> None:
+    from scipy.optimize import least_squares
+
+    from pincal.lm import levenberg_marquardt
+
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0.0, 3.0, 40)
+    truth = np.array([2.0, -1.3, 0.5, 0.7])
+    y = truth[0] * np.exp(truth[1] * t) + truth[2] * np.sin(truth[3] * 4 * t) + rng.normal(0, 0.01, t.size)
+
+    def fun(x: np.ndarray) -> np.ndarray:
+        return x[0] * np.exp(x[1] * t) + x[2] * np.sin(x[3] * 4 * t) - y
+
+    def jac(x: np.ndarray) -> np.ndarray:
+        e, s = np.exp(x[1] * t), np.sin(x[3] * 4 * t)
+        return np.column_stack([e, x[0] * t * e, s, x[2] * 4 * t * np.cos(x[3] * 4 * t)])
+
+    start = truth + rng.normal(0.0, 0.1, 4)
+    ours = levenberg_marquardt(fun, jac, start, np.ones(4))
+    reference = least_squares(fun, start, jac=jac, method="lm", xtol=1e-14, ftol=1e-14, gtol=1e-14)
+    assert ours.success and ours.status in (1, 2, 3)
+    assert np.allclose(ours.x, reference.x, rtol=1e-7, atol=1e-9)
+    assert ours.cost == pytest.approx(reference.cost, rel=1e-10)
+    assert np.abs(jac(ours.x).T @ fun(ours.x)).max() < 1e-9  # the normal equations hold
