@@ -1,10 +1,10 @@
 """BLAS threads: one by default.
 
 pincal's dense algebra is small (a few thousand rows of some fifty columns, 6 × 6 and 3 × 3
-blocks): starting and synchronising BLAS threads costs more than it saves. Measured on a 2-core
-machine (``benchmarks/speed.py``), OpenBLAS's default threads made ``calibrate`` on 100 poses
-7-10 × slower; a second thread only pays off from about 30,000 poses (the QR of a
-100,000 × 50 Jacobian). So the library's entry points (:func:`pincal.calibrate`,
+blocks): starting and synchronising BLAS threads costs more than it saves. On a 2-core machine,
+OpenBLAS's default threads made ``calibrate`` on 100 poses 7-10 × slower, and a second thread
+(``benchmarks/speed.py``) gains nothing at 1,000 or 10,000 poses and 14 % at 100,000 (the QR
+of a 300,000 × 45 Jacobian). So the library's entry points (:func:`pincal.calibrate`,
 :func:`pincal.diagnose.diagnose`, ...) and the command line run with one BLAS thread unless told
 otherwise:
 
