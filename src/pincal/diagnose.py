@@ -196,13 +196,19 @@ class Diagnosis:
         }
 
 
+def _counted(sum_sq: float, n_res: int, kind: str, n_poses: int) -> tuple[float, int]:
+    """A residual sum of squares and its number of independent equations: for distance data,
+    the ``3 N - 6`` that the pairs' distances carry, the sum scaled to match."""
+    if kind != "distance":
+        return sum_sq, n_res
+    n_eq = 3 * n_poses - 6
+    return sum_sq * n_eq / n_res, n_eq
+
+
 def _rss(cal: Calibration, data: Dataset) -> tuple[float, int]:
     """Residual sum of squares of a fit and its number of independent equations."""
     res = cal.problem(data).residuals(cal.theta)
-    if cal.measurement.kind != "distance":
-        return float(res @ res), len(res)
-    n_eq = 3 * len(data) - 6
-    return float(res @ res) * n_eq / len(res), n_eq
+    return _counted(float(res @ res), len(res), cal.measurement.kind, len(data))
 
 
 def _f_value(rss0: float, rss1: float, extra: int, dof: int) -> float:
@@ -219,10 +225,12 @@ def _f_test(base: Calibration, ext: Calibration, data: Dataset) -> float:
     return _f_value(rss0, rss1, extra, n_eq - ext.identifiability.n_identifiable)
 
 
-def _f_screened(base: Calibration, data: Dataset, lin: Linearised, screen: Screen, extra: int) -> float:
-    """The F-test of a candidate only screened: its linearised fit's residual sum against the base's."""
-    rss0, n_eq = _rss(base, data)
-    rss1 = screen.rss * rss0 / max(float(lin.residuals @ lin.residuals), 1e-300)  # as _rss counts
+def _f_screened(base: Calibration, lin: Linearised, screen: Screen, extra: int) -> float:
+    """The F-test of a candidate only screened: its linearised fit's residual sum against the
+    base's (whose residuals ``lin`` holds)."""
+    kind, n_poses, n_res = lin.kind, len(lin.data), len(lin.residuals)
+    rss0, n_eq = _counted(float(lin.residuals @ lin.residuals), n_res, kind, n_poses)
+    rss1, _ = _counted(screen.rss, n_res, kind, n_poses)
     return _f_value(rss0, rss1, extra, n_eq - base.identifiability.n_identifiable - extra)
 
 
@@ -282,7 +290,7 @@ def diagnose(
         finalists.append(Candidate(ext, cv.after.rms_mm, _f_test(base, full, data), full, data.q))
     finalists.sort(key=lambda c: c.cv_rms_mm)
     screened = [
-        Candidate(ext, s.cv_rms_mm, _f_screened(base, data, lin, s, ext.n_params), None, data.q, s.params)
+        Candidate(ext, s.cv_rms_mm, _f_screened(base, lin, s, ext.n_params), None, data.q, s.params)
         for ext, s in screens[FINALISTS:]
     ]
     judged = finalists + screened
