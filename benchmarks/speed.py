@@ -34,8 +34,6 @@ import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Callable
-from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -49,22 +47,12 @@ from pincal.threads import blas_threads
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from figaroh_tiago import FigarohTiago, figaroh_available, time_whole_script  # noqa: E402
-from real_data import load_tiago_data  # noqa: E402
+from real_data import load_tiago_data, timed  # noqa: E402
 
 TIAGO = Path(__file__).resolve().parents[2] / "shared" / "datasets" / "tiago_qualisys"
 CASES = (("ur5", "position"), ("panda", "pose"))
 #: The installed ``pincal`` command (or the module, from a source tree without the script).
 PINCAL = [found] if (found := shutil.which("pincal")) else [sys.executable, "-m", "pincal.cli"]
-
-
-def median_time(fn: Callable[[], Any], repeat: int) -> float:
-    """Median wall time [s] of ``repeat`` calls of ``fn``."""
-    times = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times)
 
 
 def experiment(name: str, kind: str, n: int) -> tuple[pincal.Robot, pincal.Dataset]:
@@ -80,13 +68,13 @@ def lower_bound(robot: pincal.Robot, data: pincal.Dataset, shape: tuple[int, int
     configurations = [robot.configuration(q) for q in data.q]
     matrix = np.random.default_rng(0).standard_normal(shape)
 
-    def run() -> None:
+    def run() -> Any:
         for q in configurations:
             pin.forwardKinematics(model, pdata, q)
             pin.computeFrameJacobian(model, pdata, q, robot.tip_frame_id, pin.LOCAL_WORLD_ALIGNED)
-        np.linalg.qr(matrix, mode="r")
+        return np.linalg.qr(matrix, mode="r")
 
-    return median_time(run, repeat)
+    return timed(repeat, run)[1]
 
 
 def identification(sizes: tuple[int, ...]) -> None:
@@ -99,7 +87,7 @@ def identification(sizes: tuple[int, ...]) -> None:
             robot, data = experiment(name, kind, n)
             repeat = 5 if n <= 1000 else 3 if n <= 10000 else 1
             pincal.calibrate(robot, data.subset(range(min(n, 100))), "placements", kind)  # warm-up
-            seconds = median_time(partial(pincal.calibrate, robot, data, "placements", kind), repeat)
+            seconds = timed(repeat, pincal.calibrate, robot, data, "placements", kind)[1]
             setup = set_up(robot, data, "placements", kind)
             start = register(setup)
             free = identifiable_set(setup, start).identifiable
@@ -121,8 +109,7 @@ def diagnosis(cases: tuple[tuple[str, str, int], ...]) -> None:
     print("\n## Diagnosis: pincal.diagnose.diagnose(robot, data), every candidate, 5 folds")
     for name, kind, n in cases:
         robot, data = experiment(name, kind, n)
-        seconds = median_time(partial(pincal.diagnose.diagnose, robot, data, measure=kind), 3)
-        answer = pincal.diagnose.diagnose(robot, data, measure=kind)
+        answer, seconds = timed(3, pincal.diagnose.diagnose, robot, data, measure=kind)
         print(f"{name} {kind}, {n} poses: {seconds:.2f} s for {len(answer.candidates)} candidates")
         print(f"  {answer.summary()}")
 
@@ -135,7 +122,7 @@ def threads(sizes: tuple[int, ...]) -> None:
         times = {}
         for count in (1, 2):
             with blas_threads(count):
-                times[count] = median_time(partial(pincal.calibrate, robot, data), 3 if n <= 10000 else 1)
+                times[count] = timed(3 if n <= 10000 else 1, pincal.calibrate, robot, data)[1]
         gain = times[1] / times[2]
         print(f"{n:7d} poses: 1 thread {times[1]:.3f} s, 2 threads {times[2]:.3f} s ({gain:.2f}x)")
 
