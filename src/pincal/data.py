@@ -5,6 +5,9 @@ metres; degrees with ``degrees=True``), ``x,y,z`` the measured point in the inst
 (metres; millimetres with ``units="mm"``) and optionally ``qw,qx,qy,qz`` the measured
 orientation of a target frame on the tip. Other columns are ignored. Lines starting with ``#``
 are comments.
+
+Fixed-point data (``--measure points``, :mod:`pincal.fixed_points`) has a ``point`` column
+instead of ``x,y,z``: the name of the physical point (a socket) the tip was held at.
 """
 
 from __future__ import annotations
@@ -38,6 +41,9 @@ class Dataset:
         points: (N, 3) measured point in the instrument frame [m].
         quaternions: (N, 4) measured orientation (w, x, y, z) in the instrument frame, or None.
         rows: (N,) the row number of each pose in its source, or None for 1..N.
+        labels: (N,) for fixed-point data, the index in ``point_names`` of the point each pose
+            held the tip at (``points`` is then zero), else None.
+        point_names: the names of the fixed points, as the ``point`` column gives them.
     """
 
     joint_names: tuple[str, ...]
@@ -45,6 +51,8 @@ class Dataset:
     points: np.ndarray
     quaternions: np.ndarray | None = None
     rows: np.ndarray | None = None
+    labels: np.ndarray | None = None
+    point_names: tuple[str, ...] = ()
 
     @property
     def row_numbers(self) -> np.ndarray:
@@ -77,8 +85,14 @@ class Dataset:
         """The poses at ``index`` (row numbers are kept)."""
         idx = np.asarray(index)
         quats = None if self.quaternions is None else self.quaternions[idx]
+        labels = None if self.labels is None else self.labels[idx]
         return replace(
-            self, q=self.q[idx], points=self.points[idx], quaternions=quats, rows=self.row_numbers[idx]
+            self,
+            q=self.q[idx],
+            points=self.points[idx],
+            quaternions=quats,
+            rows=self.row_numbers[idx],
+            labels=labels,
         )
 
     def split(self, fraction: float, seed: int = 0) -> tuple[Dataset, Dataset]:
@@ -117,6 +131,40 @@ def csv_columns(path: str | Path) -> list[str]:
         raise DataError(f"{path}: malformed header line ({exc})") from None
 
 
+def _rows(path: Path) -> tuple[list[str], list[list[str]]]:
+    """Header and data rows of a CSV (comments dropped), with duplicated columns refused."""
+    try:
+        rows = list(csv.reader(io.StringIO("\n".join(_read_lines(path)))))
+    except csv.Error as exc:
+        raise DataError(f"{path}: malformed CSV ({exc})") from None
+    header = [h.strip() for h in rows.pop(0)]
+    dupes = sorted({h for h in header if h and header.count(h) > 1})
+    if dupes:
+        raise DataError(f"{path}: duplicated column(s) {', '.join(dupes)}")
+    return header, rows
+
+
+def read_labels(path: str | Path, column: str = "point") -> tuple[np.ndarray, tuple[str, ...]]:
+    """The ``point`` column of a fixed-point CSV: each row's index into the names (in order of
+    first appearance) and the names.
+
+    Raises:
+        DataError: no such column, or an empty cell.
+    """
+    header, rows = _rows(Path(path))
+    if column not in header:
+        raise DataError(f"{path}: no {column!r} column; fixed-point data names each row's point there")
+    at = header.index(column)
+    names: dict[str, int] = {}
+    labels = np.empty(len(rows), dtype=int)
+    for r, row in enumerate(rows):
+        name = row[at].strip() if at < len(row) else ""
+        if not name:
+            raise DataError(f"{path}: data row {r + 1} has no point name in column {column!r}")
+        labels[r] = names.setdefault(name, len(names))
+    return labels, tuple(names)
+
+
 def read_table(
     path: str | Path, columns: Sequence[str], what: str, rename: dict[str, str] | None = None
 ) -> np.ndarray:
@@ -132,14 +180,7 @@ def read_table(
         DataError: missing file, duplicated or missing columns, no rows, non-numeric or non-finite cells.
     """
     path = Path(path)
-    try:
-        rows = list(csv.reader(io.StringIO("\n".join(_read_lines(path)))))
-    except csv.Error as exc:
-        raise DataError(f"{path}: malformed CSV ({exc})") from None
-    header = [h.strip() for h in rows.pop(0)]
-    dupes = sorted({h for h in header if h and header.count(h) > 1})
-    if dupes:
-        raise DataError(f"{path}: duplicated column(s) {', '.join(dupes)}")
+    header, rows = _rows(path)
     names = [(rename or {}).get(c, c) for c in columns]
     missing = [c for c in names if c not in header]
     if missing:
@@ -171,6 +212,7 @@ def read_csv(
     degrees: bool = False,
     units: str = "m",
     prismatic: Sequence[bool] | None = None,
+    measure: str | None = None,
 ) -> Dataset:
     """Read a measurement CSV (see the module docstring).
 
@@ -180,28 +222,50 @@ def read_csv(
         degrees: revolute joint values are in degrees.
         units: unit of ``x,y,z`` and of prismatic joint values (``m`` or ``mm``).
         prismatic: which joints are prismatic (their values take ``units``, not degrees).
+        measure: ``points`` reads fixed-point data (a ``point`` column, no ``x,y,z``); the
+            default reads it when the file has a ``point`` column and no ``x,y,z``.
 
     Raises:
         DataError: the file is missing or malformed.
     """
     if units not in UNITS:
         raise DataError(f"unknown unit {units!r}: use m or mm")
-    required = [*joint_names, "x", "y", "z"]
     header = csv_columns(path)
+    if measure == "points" or (measure is None and "point" in header and "x" not in header):
+        return _read_points(path, joint_names, degrees, units, prismatic)
+    required = [*joint_names, "x", "y", "z"]
     has_quat = all(c in header for c in _QUAT)
     wanted = [*required, *(_QUAT if has_quat else ())]
     values = read_table(path, wanted, f"every chain joint ({', '.join(joint_names)}) and x,y,z")
     n = len(joint_names)
-    q = values[:, :n].copy()
-    prism = np.asarray(prismatic if prismatic is not None else [False] * n, dtype=bool)
-    if degrees:
-        q[:, ~prism] = np.deg2rad(q[:, ~prism])
-    q[:, prism] *= UNITS[units]
+    q = _joint_values(values[:, :n], degrees, units, prismatic)
     points = values[:, n : n + 3] * UNITS[units]
     quats = values[:, n + 3 : n + 7] if has_quat else None
     if quats is not None:
         check_quaternions(path, quats)
     return Dataset(tuple(joint_names), q, points, quats)
+
+
+def _joint_values(
+    values: np.ndarray, degrees: bool, units: str, prismatic: Sequence[bool] | None
+) -> np.ndarray:
+    """Joint columns as read -> radians and metres."""
+    q = values.copy()
+    prism = np.asarray(prismatic if prismatic is not None else [False] * q.shape[1], dtype=bool)
+    if degrees:
+        q[:, ~prism] = np.deg2rad(q[:, ~prism])
+    q[:, prism] *= UNITS[units]
+    return q
+
+
+def _read_points(
+    path: str | Path, joint_names: Sequence[str], degrees: bool, units: str, prismatic: Sequence[bool] | None
+) -> Dataset:
+    """Fixed-point data: the joint columns and the ``point`` column."""
+    values = read_table(path, joint_names, f"every chain joint ({', '.join(joint_names)}) and point")
+    labels, names = read_labels(path)
+    q = _joint_values(values, degrees, units, prismatic)
+    return Dataset(tuple(joint_names), q, np.zeros((len(q), 3)), labels=labels, point_names=names)
 
 
 def check_quaternions(path: str | Path, quats: np.ndarray) -> None:
@@ -214,15 +278,21 @@ def check_quaternions(path: str | Path, quats: np.ndarray) -> None:
 def write_csv(path: str | Path, data: Dataset, units: str = "m") -> None:
     """Write a dataset in the CSV format :func:`read_csv` reads (radians, ``units`` for x,y,z)."""
     scale = 1.0 / UNITS[units]
-    header = [*data.joint_names, "x", "y", "z", *(_QUAT if data.has_orientation else ())]
+    fixed = data.labels is not None
+    header = [*data.joint_names, *(("point",) if fixed else ("x", "y", "z"))]
+    header += _QUAT if data.has_orientation else ()
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow(header)
     for i in range(len(data)):
-        row = [*data.q[i], *(data.points[i] * scale)]
+        row = [repr(float(v)) for v in data.q[i]]
+        if data.labels is not None:
+            row.append(data.point_names[data.labels[i]])
+        else:
+            row += [repr(float(v)) for v in data.points[i] * scale]
         if data.quaternions is not None:
-            row += list(data.quaternions[i])
-        writer.writerow([repr(float(v)) for v in row])
+            row += [repr(float(v)) for v in data.quaternions[i]]
+        writer.writerow(row)
     atomic_write(path, buffer.getvalue())
 
 

@@ -2,16 +2,19 @@
 
 Position and pose data: the norm of each pose's 3-D position error (and, for pose data, the
 angle of its orientation error). Distance data: ``|d_measured - d_model|`` over pairs of poses.
+Fixed-point data: each row's distance from its point's mean tip position, and MUKCa's two
+figures (:func:`pincal.fixed_points.point_errors`).
 """
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
 from .data import Dataset
 from .effects import Extension
+from .fixed_points import point_errors
 from .measurements import Measurement, Problem
 from .models import Model
 
@@ -29,12 +32,14 @@ class ErrorStats:
     rot_mean_mrad: float | None = None
     rot_max_mrad: float | None = None
     rot_std_mrad: float | None = None
+    point_mae_mm: float | None = None
+    point_distance_error_mm: float | None = None
 
     @classmethod
     def of(cls, errors_m: np.ndarray, rot_errors_rad: np.ndarray | None = None) -> ErrorStats:
         """Statistics of position errors [m] and optional orientation errors [rad]."""
         e = np.asarray(errors_m, dtype=float) * 1e3
-        rot: dict[str, float] = {}
+        rot: dict[str, float | None] = {}
         if rot_errors_rad is not None:
             r = np.asarray(rot_errors_rad, dtype=float) * 1e3
             rot = {
@@ -52,9 +57,18 @@ class ErrorStats:
             **rot,
         )
 
-    def to_dict(self) -> dict[str, float | int]:
-        """JSON-ready dictionary (orientation keys only when present)."""
-        return {k: v for k, v in asdict(self).items() if v is not None}
+    @classmethod
+    def of_points(cls, errors_m: np.ndarray, distance_errors_m: np.ndarray) -> ErrorStats:
+        """Statistics of fixed-point errors (:func:`pincal.fixed_points.point_errors`) [m]."""
+        stats = cls.of(errors_m)
+        off = float(np.mean(distance_errors_m)) * 1e3 if len(distance_errors_m) else None
+        return replace(stats, point_mae_mm=stats.mean_mm, point_distance_error_mm=off)
+
+    def to_dict(self) -> dict[str, float | int | None]:
+        """JSON-ready dictionary (orientation keys only when present; for fixed-point data both
+        point keys, the distance error None when no known distance applies)."""
+        fixed = self.point_mae_mm is not None
+        return {k: v for k, v in asdict(self).items() if v is not None or (fixed and k.startswith("point_"))}
 
 
 def pose_errors(
@@ -66,6 +80,8 @@ def pose_errors(
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """Per-pose position error norms [m] and orientation error angles [rad] (pose data)."""
     problem = Problem(model, measurement, data, extension)
+    if measurement.kind == "points":  # from the fitted points
+        return np.linalg.norm(problem.residuals(theta)[: 3 * len(data)].reshape(-1, 3), axis=1), None
     pos, rot = problem.predict(theta)
     err = np.linalg.norm(pos - data.points, axis=1)
     if measurement.kind != "pose":
@@ -96,4 +112,7 @@ def evaluate(
     """Error statistics of the unknowns ``theta`` on ``data``, as the report states them."""
     if measurement.kind == "distance":
         return ErrorStats.of(distance_errors(model, measurement, theta, data, extension))
+    if measurement.kind == "points":  # from each point's mean: the fitted points are not needed
+        tips = Problem(model, measurement, data, extension).target_frames(theta)[2]
+        return ErrorStats.of_points(*point_errors(tips, data, measurement.point_distances))
     return ErrorStats.of(*pose_errors(model, measurement, theta, data, extension))

@@ -35,12 +35,15 @@ class Identifiability:
         singular_values: singular values of the scaled Jacobian over the candidate parameters.
         condition_number: of the scaled Jacobian restricted to the identifiable set.
         reasons: parameter name -> why it is held at its current value.
+        gauges: motions of the whole set-up no measurement sees (fixed-point data), each holding
+            a parameter (:mod:`pincal.fixed_points`).
     """
 
     identifiable: np.ndarray
     singular_values: np.ndarray
     condition_number: float
     reasons: dict[str, str]
+    gauges: tuple[str, ...] = ()
 
     @property
     def n_identifiable(self) -> int:

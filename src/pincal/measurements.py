@@ -13,7 +13,10 @@ Residuals (model minus measurement):
 - ``pose``: the position (3 [m]) and ``w · log3(R_measuredᵀ R_model)`` (3), with
   ``w = rotation_weight`` [m/rad] so that 1 mrad weighs as much as ``w`` mm;
 - ``distance`` (Gao et al. 2013, eqs. 13-18): ``|p_i - p_j|`` (model, base frame) minus the
-  measured distance, one per pair [m]; it needs no registration.
+  measured distance, one per pair [m]; it needs no registration;
+- ``points``: the tip (base frame) minus the position of the fixed point the row names, 3 per
+  row [m], then one per known distance between points (:mod:`pincal.fixed_points`); the points'
+  positions (3 each, [m]) take the registration's place in θ.
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ import pinocchio as pin
 from .data import Dataset
 from .effects import Extension
 from .errors import DataError
+from .fixed_points import PointDistance, check_distances, point_index, point_means, points_rows
 from .kinematics import Chain, Frames, forward, jlog3, log3, stacked_dot, twist_columns
 from .models import Model
 from .options import MEASURES
@@ -61,13 +65,15 @@ class Measurement:
     """What is measured and what is known about the set-up.
 
     Attributes:
-        kind: ``position``, ``pose`` or ``distance``.
+        kind: ``position``, ``pose``, ``distance`` or ``points``.
         instrument_T_base: the registration, or its initial guess when ``fit_instrument``.
         fit_instrument: whether the registration is unknown (not used by ``distance``).
         tool: ``tip_T_target`` (pose) or a point on the tip (its translation), or initial guess.
         fit_tool: whether the tool is unknown.
         rotation_weight: weight of orientation residuals [m/rad] (``pose`` only).
         pairs: (m, 2) pose pairs for ``distance`` (default: all pairs).
+        points: the fixed points whose positions are unknowns (``points``).
+        point_distances: known distances between them (``points``), [m].
     """
 
     kind: str = "position"
@@ -77,6 +83,8 @@ class Measurement:
     fit_tool: bool = True
     rotation_weight: float = ROTATION_WEIGHT
     pairs: np.ndarray | None = None
+    points: tuple[str, ...] = ()
+    point_distances: tuple[PointDistance, ...] = ()
 
     def __post_init__(self) -> None:
         if self.kind not in MEASURES:
@@ -85,7 +93,12 @@ class Measurement:
     @property
     def n_instrument(self) -> int:
         """Number of registration unknowns."""
-        return 6 if self.fit_instrument and self.kind != "distance" else 0
+        return 6 if self.fit_instrument and self.kind in ("position", "pose") else 0
+
+    @property
+    def n_points(self) -> int:
+        """Number of unknown point coordinates (fixed-point data)."""
+        return 3 * len(self.points) if self.kind == "points" else 0
 
     @property
     def n_tool(self) -> int:
@@ -98,6 +111,9 @@ class Measurement:
         if self.n_instrument:
             names += [f"instrument.{c}" for c in ("tx", "ty", "tz", "rx", "ry", "rz")]
             units += ["m"] * 3 + ["rad"] * 3
+        if self.n_points:
+            names += [f"point.{p}.{c}" for p in self.points for c in "xyz"]
+            units += ["m"] * self.n_points
         if self.n_tool == 3:
             names += ["tool.x", "tool.y", "tool.z"]
             units += ["m"] * 3
@@ -115,6 +131,7 @@ def unpack(n_model: int, measurement: Measurement, theta: np.ndarray) -> tuple[n
     if measurement.n_instrument:
         reg = reg * pin.exp6(pin.Motion(theta[k : k + 6]))
         k += 6
+    k += measurement.n_points
     tool = measurement.tool
     if measurement.n_tool == 3:
         tool = pin.SE3(tool.rotation, theta[k : k + 3].copy())
@@ -150,6 +167,9 @@ class Problem:
                 data.points[self.pairs[:, 0]] - data.points[self.pairs[:, 1]], axis=1
             )
         self.measured_rotations = data.rotations() if measurement.kind == "pose" else np.empty((0, 3, 3))
+        self.point_index = point_index(data, measurement.points) if measurement.kind == "points" else None
+        if measurement.kind == "points":
+            check_distances(measurement.points, measurement.point_distances)
         self._frames: tuple[Any, Any] = (None, None)  # the last θ's frames
 
     @property
@@ -163,11 +183,25 @@ class Problem:
 
     def initial_theta(self) -> np.ndarray:
         """θ for the nominal model and the measurement model's initial registration and tool."""
-        theta = np.zeros(self.n_params)
-        if self.measurement.n_tool == 3:
-            k = self.n_model + self.measurement.n_instrument
-            theta[k : k + 3] = self.measurement.tool.translation
+        m, theta = self.measurement, np.zeros(self.n_params)
+        if m.n_tool == 3:
+            k = self.n_model + m.n_instrument + m.n_points
+            theta[k : k + 3] = m.tool.translation
+        if m.n_points and self.point_index is not None:  # each point at its rows' mean tip
+            means = point_means(self.target_frames(theta)[2], self.point_index, len(m.points))
+            theta[self.n_model : self.n_model + m.n_points] = means.reshape(-1)
         return theta
+
+    def point_positions(self, theta: np.ndarray) -> np.ndarray:
+        """The fixed points' positions (K, 3) [m] in the base frame (fixed-point data)."""
+        return theta[self.n_model : self.n_model + self.measurement.n_points].reshape(-1, 3)
+
+    def row_poses(self) -> np.ndarray:
+        """The pose each residual row belongs to (-1: none, as a known distance's row); for
+        every measure but ``distance``, whose rows are pairs (:attr:`pairs`)."""
+        per_pose = {"position": 3, "pose": 6, "points": 3}[self.measurement.kind]
+        rows = np.repeat(np.arange(len(self.data)), per_pose)
+        return np.concatenate([rows, np.full(len(self.measurement.point_distances), -1)])
 
     def reached(self, theta: np.ndarray) -> np.ndarray:
         """The joint values the robot reaches (N, n): the commands plus the extension's error."""
@@ -217,7 +251,7 @@ class Problem:
         cols = np.arange(self.n_params) if free is None else np.arange(self.n_params)[free]
         return self._evaluate(theta, cols)[1]
 
-    def _target_jacobian(
+    def target_jacobian(
         self,
         theta: np.ndarray,
         cols: np.ndarray,
@@ -275,6 +309,7 @@ class Problem:
                 zeta = pin.Jexp6(pin.Motion(theta[k : k + 6]))[:, cols[here] - k]
                 add(reg.rotation, reg.translation, zeta, here)
             k += 6
+        k += m.n_points  # a point's columns are not the target's: see fixed_points.points_rows
         here = np.flatnonzero(cols >= k)
         if here.size and m.n_tool == 3:
             jac_v[:, :, here] = frames.tip_rotation[:, :, cols[here] - k]
@@ -285,7 +320,9 @@ class Problem:
     def _evaluate(self, theta: np.ndarray, cols: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
         """Residuals and, if columns ``cols`` are asked for, their Jacobian (else an empty array)."""
         m = self.measurement
-        frames, rot, pos = self.target_frames(theta, in_instrument=m.kind != "distance")
+        frames, rot, pos = self.target_frames(theta, in_instrument=m.kind not in ("distance", "points"))
+        if m.kind == "points":
+            return points_rows(self, theta, cols, frames, (rot, pos))
         if m.kind == "distance":
             i, j = self.pairs[:, 0], self.pairs[:, 1]
             diff = pos[i] - pos[j]
@@ -293,7 +330,7 @@ class Problem:
             res = dist - self.measured_distances
             if cols is None:
                 return res, np.empty((0, 0))
-            jac_v = self._target_jacobian(theta, cols, frames, (rot, pos))
+            jac_v = self.target_jacobian(theta, cols, frames, (rot, pos))
             u = diff / np.where(dist > 0, dist, 1.0)[:, None]  # a pose paired with itself: no direction
             return res, np.einsum("pk,pkc->pc", u, jac_v[i] - jac_v[j])
 
@@ -307,7 +344,7 @@ class Problem:
         if cols is None:
             return res, np.empty((0, 0))
         if m.kind == "position":
-            return res, self._target_jacobian(theta, cols, frames, (rot, pos)).reshape(-1, len(cols))
+            return res, self.target_jacobian(theta, cols, frames, (rot, pos)).reshape(-1, len(cols))
         # d log3(R_measᵀ R) = Jlog3 · Rᵀ · (angular velocity in the instrument's axes)
         to_log = m.rotation_weight * (jlog3(err, log) @ np.transpose(rot, (0, 2, 1)))
-        return res, self._target_jacobian(theta, cols, frames, (rot, pos), to_log).reshape(-1, len(cols))
+        return res, self.target_jacobian(theta, cols, frames, (rot, pos), to_log).reshape(-1, len(cols))

@@ -10,7 +10,7 @@ from __future__ import annotations
 #: Parameterizations of the geometric errors (:mod:`pincal.models`).
 MODELS = ("placements", "poe", "mdh", "offsets")
 #: What is measured (:mod:`pincal.measurements`).
-MEASURES = ("position", "pose", "distance")
+MEASURES = ("position", "pose", "distance", "points")
 #: Losses of ``scipy.optimize.least_squares`` (:mod:`pincal.solver`).
 LOSSES = ("linear", "soft_l1", "huber", "cauchy")
 #: Length units of data files -> metres.

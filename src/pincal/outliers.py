@@ -35,7 +35,9 @@ def pose_scores(problem: Problem, theta: np.ndarray) -> np.ndarray:
             np.add.at(sq, problem.pairs[:, col], res**2)
             np.add.at(count, problem.pairs[:, col], 1)
         return np.sqrt(sq / np.maximum(count, 1))
-    return np.linalg.norm(res.reshape(n, -1), axis=1)
+    rows = problem.row_poses()
+    mine = rows >= 0
+    return np.sqrt(np.bincount(rows[mine], res[mine] ** 2, minlength=n))
 
 
 def robust_scale(residuals: np.ndarray) -> float:

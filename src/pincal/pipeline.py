@@ -19,6 +19,7 @@ from .calibration import Calibration
 from .data import Dataset
 from .effects import Extension, Payload
 from .errors import DataError
+from .fixed_points import PointDistance
 from .identifiability import RCOND, Identifiability
 from .measurements import ROTATION_WEIGHT
 from .models import Model
@@ -95,7 +96,7 @@ def calibrate(
     instrument_T_base: pin.SE3 | None = None,
     tool: pin.SE3 | np.ndarray | None = None,
     rotation_weight: float = ROTATION_WEIGHT,
-    pairs: str | np.ndarray = "all",
+    pairs: str | np.ndarray = "all", point_distances: tuple[PointDistance, ...] = (),  # fmt: skip
     loss: str = "linear",
     f_scale: float = 1e-4, rcond: float = RCOND,  # fmt: skip
     extension: Extension | str | None = None,
@@ -112,13 +113,13 @@ def calibrate(
     Args:
         robot, data, test: the chain (:func:`pincal.load_robot`), fitted and held-out poses.
         model: ``placements``, ``poe``, ``mdh``, ``offsets`` or a :class:`~pincal.models.Model`.
-        measure: ``position``, ``pose`` or ``distance`` (default: ``pose`` with orientations).
+        measure: ``position``, ``pose``, ``distance`` or ``points`` (default: by the columns).
         instrument_T_base, tool: the known registration, and measured point on the tip (3,) [m]
             or target frame (default: unknown, estimated).
         rotation_weight: weight of orientation residuals [m/rad] for pose data; pairs: pose
-            pairs for distance data (``all``, ``gao`` (eq. 21) or an (m, 2) array).
-        loss, f_scale, rcond: ``linear`` or a robust loss and where it down-weights [m]; the
-            relative singular-value threshold of the rank.
+            pairs for distance data (``all``, ``gao`` (eq. 21) or an (m, 2) array);
+            point_distances: known distances between fixed points, ((A, B, D [m]), ...).
+        loss, f_scale, rcond: a loss and where it down-weights [m]; the rank's threshold.
         extension: an effect identified with the geometry (:class:`~pincal.effects.Extension`
             or ``EFFECT:JOINT``); ``"auto"``: the cause the diagnosis names on the chosen
             geometry, if any (:mod:`pincal.choice`); None or ``"none"``: no extension.
@@ -140,7 +141,7 @@ def calibrate(
         raise DataError(f"unknown loss {loss!r}: choose one of {', '.join(LOSSES)}")
     wanted, ext = parse_params(params), parse_extension(robot, extension, payload)
     options: dict[str, Any] = dict(instrument_T_base=instrument_T_base, tool=tool, pairs=pairs)
-    options["rotation_weight"] = rotation_weight
+    options.update(rotation_weight=rotation_weight, point_distances=tuple(point_distances))
     fit_options: dict[str, Any] = dict(partial=partial, loss=loss, f_scale=f_scale, rcond=rcond)
     call = dict(options, **fit_options, params=params, extension=extension, payload=payload)
     given = ext if isinstance(ext, Extension) else None

@@ -44,6 +44,8 @@ def initial_measurement(robot: Robot, data: Dataset, measurement: Measurement) -
     Alternates a rigid registration of the nominal points (Kabsch) with a linear least-squares
     solve of the tool point, then averages the tool orientation for pose data.
     """
+    if measurement.kind == "points":  # no instrument; the points start at their rows' means
+        return measurement
     frames = forward(Chain.nominal(robot), data.q)
     rot, pos = frames.tip_rotation, frames.tip_translation
     reg, tool = measurement.instrument_T_base, measurement.tool

@@ -104,6 +104,7 @@ def report_dict(cal: Calibration, data: Dataset | None = None) -> dict[str, Any]
         "condition_number": ident.condition_number,
         "singular_values": [float(s) for s in ident.singular_values],
         "held": dict(sorted(ident.reasons.items())),
+        "not_identifiable": list(ident.gauges),
         "rotation_weight_m_per_rad": cal.measurement.rotation_weight
         if cal.measurement.kind == "pose"
         else None,
@@ -138,6 +139,9 @@ def report_json(cal: Calibration, data: Dataset | None = None, **extra: Any) -> 
 def _fmt(stats: ErrorStats | None) -> str:
     if stats is None:
         return "-"
+    if stats.point_mae_mm is not None:
+        off = stats.point_distance_error_mm
+        return f"{stats.point_mae_mm:8.4f} / " + ("       -" if off is None else f"{off:8.4f}")
     text = f"{stats.rms_mm:8.4f} / {stats.max_mm:8.4f}"
     if stats.rot_rms_mrad is not None:
         text += f"  ({stats.rot_rms_mrad:.3f} mrad)"
@@ -209,19 +213,28 @@ def choice_lines(cal: Calibration, data: Dataset | None = None) -> list[str]:
 def summary(cal: Calibration, data: Dataset | None = None) -> str:
     """A readable before/after table, the identifiability summary and what was chosen."""
     ident = cal.identifiability
-    what = "abs. distance error over pairs" if cal.measurement.kind == "distance" else "position error"
+    kind = cal.measurement.kind
+    names = {"distance": "abs. distance error over pairs", "points": "fixed points"}
+    what = names.get(kind, "position error")
+    stat = "mean from the point's mean / distance error" if kind == "points" else "RMS / max"
     lines = [
         f"robot {cal.robot.name} ({cal.robot.n_joints} joints, tip {cal.robot.tip}), model {cal.model.kind}, "
         f"measure {cal.measurement.kind}, {cal.n_poses} poses",
         f"parameters: {ident.n_identifiable} identifiable of {len(cal.names)}, "
         f"condition number {ident.condition_number:.3g}",
-        f"{what} [mm], RMS / max:",
+        f"{what} [mm], {stat}:",
         f"  {'':10s} {'URDF as is':>21s} {'before':>21s} {'after':>21s}",
         _row("fitted", cal.train_urdf, cal.train_before, cal.train_after),
     ]
     if cal.test_after is not None:
         lines.append(_row("held out", cal.test_urdf, cal.test_before, cal.test_after))
-    lines.append("  (before: nominal kinematics, registration and tool fitted; URDF as is: nominal tool)")
+    fitted = "tool and points" if kind == "points" else "registration and tool"
+    lines.append(f"  (before: nominal kinematics, {fitted} fitted; URDF as is: nominal tool)")
+    if ident.gauges:
+        lines.append(
+            f"not identifiable from fixed points, a parameter held for each: the whole set-up's "
+            f"{', '.join(ident.gauges)} (base axes)"
+        )
     if cal.excluded:
         rows = ", ".join(f"row {row} ({size:.3f} mm)" for row, size in cal.excluded)
         lines.append(f"outliers left out of the fit (residual far outside the others'): {rows}")

@@ -57,11 +57,7 @@ class Linearised:
         self.norms = np.where((n := np.linalg.norm(jac, axis=0)) > 0, n, 1.0)
         self.jac = jac / self.norms  # unit columns: the normal equations stay well scaled
         n_poses = len(data)
-        if self.kind == "distance":
-            pose_of_row = problem.pairs
-        else:
-            per_pose = len(self.residuals) // n_poses
-            pose_of_row = np.repeat(np.arange(n_poses), per_pose)[:, None]
+        pose_of_row = problem.pairs if self.kind == "distance" else problem.row_poses()[:, None]
         self.folds: list[tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]]] = []
         for held in fold_indices(n_poses, folds, seed):
             in_held = np.isin(pose_of_row, held)
@@ -84,7 +80,7 @@ class Linearised:
         """Held-out errors [m]: per pose the 3-D position error, per pair the distance error."""
         if self.kind == "distance":
             return np.abs(predicted)
-        per_pose = 3 if self.kind == "position" else 6
+        per_pose = 6 if self.kind == "pose" else 3
         return np.linalg.norm(predicted.reshape(-1, per_pose)[:, :3], axis=1)
 
     def screen(self, extension: Extension | None = None) -> Screen:

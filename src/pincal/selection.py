@@ -34,7 +34,7 @@ from .data import Dataset
 from .effects import Extension
 from .evaluation import ErrorStats
 from .identifiability import RCOND
-from .measurements import all_pairs
+from .measurements import Problem, all_pairs
 from .robots import Robot
 from .solver import SETUP_KEYS, Setup, register, set_up
 from .threads import limited
@@ -125,14 +125,15 @@ class Selection:
         }
 
 
-def _groups(kind: str, n_poses: int, n_rows: int, folds: int | None, seed: int) -> list[np.ndarray]:
+def _groups(problem: Problem, folds: int | None, seed: int) -> list[np.ndarray]:
     """Residual rows of each held-out group (a pose, or a fold of poses)."""
+    n_poses = len(problem.data)
     held = [np.array([i]) for i in range(n_poses)] if folds is None else fold_indices(n_poses, folds, seed)
-    if kind == "distance":
+    if problem.measurement.kind == "distance":
         pairs = all_pairs(n_poses)
         return [np.flatnonzero(np.isin(pairs, h).any(axis=1)) for h in held]
-    per_pose = n_rows // n_poses
-    return [(h[:, None] * per_pose + np.arange(per_pose)).reshape(-1) for h in held]
+    rows = problem.row_poses()
+    return [np.flatnonzero(np.isin(rows, h)) for h in held]
 
 
 #: A group whose ``I - H_gg`` has an eigenvalue below this is determined by the fit alone.
@@ -195,7 +196,6 @@ def selection_path(
     extension, registration and tool alone), and whether it went on until no candidate added rank.
     """
     problem, data = setup.problem, setup.data
-    kind = problem.measurement.kind
     res, jac = setup.linearised(theta)
     jac = jac * setup.scale
     n_geo = setup.model.n_params
@@ -203,10 +203,10 @@ def selection_path(
     left, sv, _ = np.linalg.svd(jac[:, n_geo:], full_matrices=False)  # always fitted
     q = left[:, sv > tol]
     res = res - q @ (q.T @ res)
-    groups = _groups(kind, len(data), len(res), folds, seed)
+    groups = _groups(problem, folds, seed)
     leave_out = _LeaveOut(q, groups)
-    n_units = float(sum(len(g) for g in groups)) if kind == "distance" else float(len(data))
-    n_fit_units = float(len(res)) if kind == "distance" else float(len(data))
+    pairs = problem.measurement.kind == "distance"
+    n_units, n_fit_units = (sum(len(g) for g in groups), len(res)) if pairs else (len(data), len(data))
 
     def rms(sse: np.ndarray, units: float) -> np.ndarray:
         return np.sqrt(sse / units) * 1e3

@@ -35,7 +35,9 @@ from .data import Dataset
 from .effects import Extension
 from .errors import DataError, IdentifiabilityError
 from .evaluation import evaluate
+from .fixed_points import PointDistance, gauge_directions, gauge_reasons, without_gauges
 from .identifiability import RCOND, Identifiability, analyse, check_rank, parameter_scale
+from .kinematics import Chain, forward
 from .lm import levenberg_marquardt
 from .measurements import ROTATION_WEIGHT, Measurement, Problem, gao_pairs
 from .models import Model, make_model
@@ -44,7 +46,7 @@ from .registration import initial_measurement
 from .robots import Robot
 
 #: Keyword arguments of :func:`calibrate` that describe the measurement set-up (see :func:`set_up`).
-SETUP_KEYS = ("instrument_T_base", "tool", "rotation_weight", "pairs")
+SETUP_KEYS = ("instrument_T_base", "tool", "rotation_weight", "pairs", "point_distances")
 
 
 @dataclass(frozen=True, eq=False)
@@ -83,8 +85,12 @@ class Setup:
         return self.problem.data
 
 
-def workspace_length(data: Dataset) -> float:
-    """RMS distance of the measured points from their centroid [m] (at least 5 cm)."""
+def workspace_length(data: Dataset, robot: Robot | None = None) -> float:
+    """RMS distance of the measured points from their centroid [m] (at least 5 cm); for
+    fixed-point data, whose points are few, the RMS distance of the nominal tip from the base."""
+    if data.labels is not None and robot is not None:
+        tips = forward(Chain.nominal(robot), data.q).tip_translation
+        return max(0.05, float(np.sqrt(np.mean(np.sum(tips**2, axis=1)))))
     return max(0.05, spread(data.points))
 
 
@@ -106,6 +112,7 @@ def set_up(
     tool: pin.SE3 | np.ndarray | None = None,
     rotation_weight: float = ROTATION_WEIGHT,
     pairs: str | np.ndarray = "all",
+    point_distances: tuple[PointDistance, ...] = (),
     extension: Extension | None = None,
 ) -> Setup:
     """The problem to solve, with a closed-form first guess of the registration and tool.
@@ -122,17 +129,25 @@ def set_up(
         if isinstance(tool, pin.SE3)
         else pin.SE3(np.eye(3), np.zeros(3) if tool is None else np.asarray(tool, float))
     )
+    kind = measure or ("pose" if data.has_orientation else "position")
+    kind = "points" if measure is None and data.labels is not None else kind
+    if kind == "points" and data.labels is None:
+        raise DataError("--measure points needs a point column naming the fixed point of each row")
+    if point_distances and kind != "points":
+        raise DataError("--point-distance is for --measure points (fixed-point data)")
     measurement = Measurement(
-        kind=measure or ("pose" if data.has_orientation else "position"),
+        kind=kind,
         instrument_T_base=instrument_T_base or pin.SE3.Identity(),
         fit_instrument=instrument_T_base is None,
         tool=tool_se3,
         fit_tool=tool is None,
         rotation_weight=rotation_weight,
         pairs=_pairs(pairs, len(data)),
+        points=data.point_names if kind == "points" else (),
+        point_distances=tuple(point_distances),
     )
     problem = Problem(mdl, initial_measurement(robot, data, measurement), data, extension)
-    length = workspace_length(data)
+    length = workspace_length(data, robot)
     scale = parameter_scale(problem.units, length)
     if extension is not None:  # natural size of an effect: moving the joint by 1 mm at the lever arm
         rms = np.sqrt(np.mean(problem.regressors**2, axis=0))
@@ -230,10 +245,17 @@ def identifiable_set(
     preference[:n_model] = 1.0 + 0.05 * np.linspace(0.0, 1.0, n_model)
     preference[n_model:] = 2.0
     jacobian = setup.linearised(theta)[1]
+    gauges, blind = np.empty((problem.n_params, 0)), tuple[str, ...]()
+    if problem.measurement.kind == "points":  # see fixed_points: a parameter held per gauge
+        gauges, blind = gauge_directions(problem, theta, candidates, setup.scale)
+        jacobian = without_gauges(jacobian, gauges, setup.scale)
     ident = analyse(jacobian, problem.names, setup.scale, candidates, preference, held, rcond)
+    if blind:
+        why = gauge_reasons(problem.names, candidates & ~ident.identifiable, gauges, blind, setup.scale)
+        ident = replace(ident, reasons={**ident.reasons, **why}, gauges=blind)
     n_res, n_poses = len(jacobian), len(setup.data)
     n_needed = ident.n_identifiable
-    if not partial:
+    if not partial and problem.measurement.kind != "points":  # its rank is the gauges'
         n_needed = check_rank(problem, theta, jacobian, setup.scale, candidates, rcond)
     if n_res <= n_needed:
         per_pose = max(1, n_res // max(1, n_poses))

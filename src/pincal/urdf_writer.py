@@ -14,6 +14,9 @@ joint frames and axes, then each chain joint's ``<origin>`` is solved for:
    joint's ``<origin>`` (fixed and locked joints, unchanged): ``O'_j = K_j⁻¹ · C̃_j``.
 
 Joint offsets are folded into ``<origin rpy>``, never into ``<calibration>``; axes stay as written.
+For fixed-point data the tip is the ball the sockets held: its calibrated centre moves the origin
+of the fixed joint that carries the tip link (MUKCa's ``ball_joint``), and the sidecar's tool is
+then the identity.
 The instrument registration and the tool go to a JSON sidecar next to the URDF. Numbers are
 written with ``repr`` (shortest round-trip). The XML is parsed with entity resolution, DTD
 loading and network access off.
@@ -93,6 +96,14 @@ def urdf_chain(cal: Calibration) -> list[pin.SE3]:
     return out
 
 
+def _read(robot: Robot) -> Any:
+    """The robot's URDF as an XML tree."""
+    try:
+        return etree.parse(str(robot.urdf_path), _PARSER)
+    except (OSError, etree.XMLSyntaxError) as exc:
+        raise DataError(f"cannot parse URDF {robot.urdf_path}: {exc}") from None
+
+
 def corrected_urdf(cal: Calibration, add_frame: str | None = None) -> bytes:
     """The corrected URDF document.
 
@@ -102,11 +113,7 @@ def corrected_urdf(cal: Calibration, add_frame: str | None = None) -> bytes:
             calibrated tool (point, and orientation for pose data) on the tip link.
     """
     robot = cal.robot
-    try:
-        tree = etree.parse(str(robot.urdf_path), _PARSER)
-    except (OSError, etree.XMLSyntaxError) as exc:
-        raise DataError(f"cannot parse URDF {robot.urdf_path}: {exc}") from None
-    root = tree.getroot()
+    root = _read(robot).getroot()
     check_frame_name(add_frame)
     joints = {j.get("name"): j for j in root.findall("joint")}
     for name, c_tilde, c_nominal in zip(robot.joint_names, urdf_chain(cal), robot.placements):
@@ -114,9 +121,24 @@ def corrected_urdf(cal: Calibration, add_frame: str | None = None) -> bytes:
         o_nominal = _origin(joint.find("origin"))
         between = c_nominal * o_nominal.inverse()  # K_j: fixed and locked joints before this origin
         _set_origin(joint, between.actInv(c_tilde))
+    ball = _ball_joint(root, cal)
+    if ball is not None:
+        _set_origin(ball, _origin(ball.find("origin")) * pin.SE3(np.eye(3), cal.split()[2].translation))
     if add_frame is not None:
         _add_frame(root, robot.tip, add_frame, cal)
     return _prolog(Path(robot.urdf_path).read_bytes(), root) + etree.tostring(root, encoding="UTF-8") + b"\n"
+
+
+def _ball_joint(root: etree._Element, cal: Calibration) -> etree._Element | None:
+    """For fixed-point data, the fixed joint whose child is the tip link (it takes the ball's
+    calibrated centre), else None."""
+    if cal.measurement.kind != "points":
+        return None
+    for joint in root.findall("joint"):
+        child = joint.find("child")
+        if joint.get("type") == "fixed" and child is not None and child.get("link") == cal.robot.tip:
+            return joint
+    return None
 
 
 def _prolog(source: bytes, root: etree._Element) -> bytes:
@@ -151,6 +173,8 @@ def _add_frame(root: etree._Element, tip: str, name: str, cal: Calibration) -> N
     origin = etree.SubElement(joint, "origin")
     origin.tail = indent
     placement = tool if cal.measurement.kind == "pose" else pin.SE3(np.eye(3), tool.translation)
+    if _ball_joint(root, cal) is not None:  # the tip link is the ball's centre already
+        placement = pin.SE3.Identity()
     _set_origin(joint, placement)
     joint.tail = indent
     etree.SubElement(root, "link", name=name).tail = "\n"
@@ -159,6 +183,9 @@ def _add_frame(root: etree._Element, tip: str, name: str, cal: Calibration) -> N
 def sidecar(cal: Calibration, urdf_name: str) -> dict[str, Any]:
     """What the URDF cannot hold: the instrument registration and the tool."""
     _, reg, tool = cal.split()
+    ball = cal.measurement.kind == "points" and _ball_joint(_read(cal.robot).getroot(), cal) is not None
+    if ball:  # the corrected URDF's tip link is the ball's centre
+        tool = pin.SE3.Identity()
 
     def pose(se3: pin.SE3) -> dict[str, Any]:
         return {
@@ -167,7 +194,7 @@ def sidecar(cal: Calibration, urdf_name: str) -> dict[str, Any]:
             "matrix": se3.homogeneous.tolist(),
         }
 
-    fitted = cal.measurement.fit_instrument and cal.measurement.kind != "distance"
+    fitted = cal.measurement.n_instrument > 0
     return {
         "urdf": urdf_name,
         "robot": cal.robot.name,
@@ -176,7 +203,9 @@ def sidecar(cal: Calibration, urdf_name: str) -> dict[str, Any]:
         "model": cal.model.kind,
         "measure": cal.measurement.kind,
         "instrument_T_base": pose(reg) if fitted else None,
-        "instrument_T_base_note": "identified" if fitted else "not identified (given, or distance data)",
+        "instrument_T_base_note": "identified"
+        if fitted
+        else "not identified (given, or distance or fixed-point data)",
         "tip_T_tool": pose(tool),
         "extension": None
         if cal.extension is None

@@ -14,6 +14,7 @@ import pinocchio as pin
 from ..checks import check_columns, check_limits, check_scale
 from ..data import UNITS, Dataset, csv_columns, read_csv
 from ..errors import DataError
+from ..fixed_points import parse_point_distances, read_socket_folder
 from ..robots import BUNDLED, Robot, bundled_urdf, load_robot
 
 
@@ -33,7 +34,8 @@ def chain(args: argparse.Namespace) -> Robot:
             f"--lock {','.join(unknown)}: not joints between the base and {chain.tip} "
             f"({', '.join(chain.joint_names)})"
         )
-    check_columns(csv_columns(args.data), chain, args.lock)
+    if not Path(args.data).is_dir():  # a folder of MUKCa files has no header to check
+        check_columns(csv_columns(args.data), chain, args.lock)
     if not args.lock:
         return chain
     if len(args.lock) == chain.n_joints:
@@ -78,16 +80,28 @@ def fit_options(args: argparse.Namespace) -> dict[str, Any]:
         "rotation_weight": args.rotation_weight,
         "loss": args.loss,
         "partial": args.partial,
+        "point_distances": parse_point_distances(args.point_distance, args.units),
     }
 
 
 def load_data(path: Path, robot: Robot, args: argparse.Namespace) -> Dataset:
     """Read a measurement CSV and check its joint values and units against the robot."""
-    data = read_csv(
-        path, robot.joint_names, degrees=args.degrees, units=args.units, prismatic=robot.prismatic
-    )
+    if path.is_dir():
+        if args.degrees:
+            raise DataError(f"{path}: MUKCa's files hold radians: drop --degrees")
+        data = read_socket_folder(path, robot.joint_names, robot.prismatic)
+    else:
+        data = read_csv(
+            path,
+            robot.joint_names,
+            degrees=args.degrees,
+            units=args.units,
+            prismatic=robot.prismatic,
+            measure=args.measure,
+        )
     check_limits(robot, data, args.degrees)
-    check_scale(robot, data, args.units)
+    if data.labels is None:  # fixed points have no measured positions to compare
+        check_scale(robot, data, args.units)
     return data
 
 

@@ -227,11 +227,21 @@ def _add_force(cmd: argparse.ArgumentParser) -> None:
 
 def _add_data_options(cmd: argparse.ArgumentParser) -> None:
     cmd.add_argument("robot", help=f"a .urdf path or a bundled robot ({', '.join(BUNDLED)})")
-    cmd.add_argument("data", type=Path, help="measurement CSV (see contracts.md)")
+    cmd.add_argument(
+        "data", type=Path, help="measurement CSV (see contracts.md), or a folder of hole_<name>.csv files"
+    )
     cmd.add_argument("--tip", help="the measured frame (default: the robot's documented tip)")
     cmd.add_argument("--model", choices=MODELS, default="placements")
     cmd.add_argument(
-        "--measure", choices=MEASURES, help="default: pose if the CSV has qw,qx,qy,qz, else position"
+        "--measure",
+        choices=MEASURES,
+        help="default: points if the CSV has a point column (or DATA is a folder), pose if it has "
+        "qw,qx,qy,qz, else position",
+    )
+    cmd.add_argument(
+        "--point-distance",
+        metavar="A,B=D[;C,E=F]",
+        help="known distances between fixed points, in --units (for example 0,1=50 --units mm)",
     )
     cmd.add_argument("--degrees", action="store_true", help="revolute joint values are in degrees")
     cmd.add_argument("--units", choices=sorted(UNITS), default="m", help="unit of x,y,z and prismatic joints")

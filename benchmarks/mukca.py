@@ -1,0 +1,224 @@
+"""MUKCa's socket data: calibration without an instrument, judged on other placements.
+
+For each robot in ``DATASETS_DIR/mukca/data`` (layout in ``DATASETS_DIR/SOURCES.md``; nothing is
+copied from it) and each placement of the socket fixture, this calibrates on that placement
+alone, as ``pincal calibrate URDF PLACEMENT_DIR --tip ball_link --point-distance 0,1=50
+--units mm`` does (the same :func:`pincal.calibrate` call: parameters chosen by cross-validation,
+outlier screening), and judges the model on every other placement of the same robot with MUKCa's
+protocol: the sockets' positions are the means of that placement's own rows, the robot model is
+the calibrated one. It prints, per robot, the held-out mean absolute error (each row's distance
+from its socket's mean tip position) of the URDF as it is and calibrated (median and worst over
+train/test combinations), the distance error ``|distance between the socket means - 50 mm|``,
+what ``diagnose`` names on each placement, and the time per calibration; then it saves a plot of
+every placement's held-out error before and after.
+
+Usage::
+
+    python benchmarks/mukca.py DATASETS_DIR [--plot PNG] [--json FILE] [--model placements]
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from collections import Counter  # noqa: E402
+from dataclasses import dataclass  # noqa: E402
+from pathlib import Path  # noqa: E402
+from typing import Any  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+import pincal  # noqa: E402
+from pincal.diagnose import diagnose  # noqa: E402
+from pincal.evaluation import ErrorStats, evaluate  # noqa: E402
+from pincal.fixed_points import read_socket_folder  # noqa: E402
+
+URDFS = {"panda": "panda.urdf", "kuka": "iiwa14.urdf", "dinova": "gen3lite.urdf"}
+DISTANCE = (("0", "1", 0.05),)  # [m] between the sockets
+FIGURE = Path(__file__).parent / "figures" / "mukca.png"
+
+
+@dataclass(frozen=True)
+class Judged:
+    """One calibration, judged on another placement: held-out figures [mm]."""
+
+    robot: str
+    train: str
+    test: str
+    urdf: ErrorStats
+    after: ErrorStats
+    seconds: float
+
+
+def with_inertias(urdf: Path, donor: str, folder: Path) -> Path | None:
+    """A copy of ``urdf`` (in ``folder``) with the ``<inertial>`` of the bundled robot ``donor``'s
+    links of the same names: MUKCa's Panda and iiwa14 URDFs have no masses, so gravity torques
+    (compliance, backlash) cannot be tried on them as they are. None if no link matches."""
+    from lxml import etree
+
+    from pincal.robots import bundled_urdf
+
+    tree, source = etree.parse(str(urdf)), etree.parse(str(bundled_urdf(donor)))
+    inertials = {link.get("name"): link.find("inertial") for link in source.getroot().findall("link")}
+    moved = 0
+    for link in tree.getroot().findall("link"):
+        found = inertials.get(link.get("name"))
+        if found is not None and link.find("inertial") is None:
+            link.append(found)
+            moved += 1
+    if not moved:
+        return None
+    out = folder / f"{urdf.stem}_with_{donor}_inertias.urdf"
+    tree.write(str(out))
+    return out
+
+
+def judge(
+    robot_dir: Path, urdf: Path, model: str, folder: Path, extend: str = "none"
+) -> tuple[list[Judged], Counter[str]]:
+    """Calibrate on each placement, judge on the others; what diagnose names per placement (on
+    the URDF with the bundled Panda's masses for the Pandas: see :func:`with_inertias`)."""
+    robot = pincal.load_robot(urdf, tip="ball_link")
+    massive = with_inertias(urdf, "panda", folder) if robot_dir.name.startswith("panda") else None
+    masses = None if massive is None else pincal.load_robot(massive, tip="ball_link")
+    places = {
+        p.name: read_socket_folder(p, robot.joint_names) for p in sorted(robot_dir.iterdir()) if p.is_dir()
+    }
+    out, causes = [], Counter[str]()
+    for train, data in places.items():
+        start = time.perf_counter()
+        cal = pincal.calibrate(
+            robot if extend == "none" else masses or robot,
+            data,
+            model,
+            params="auto",
+            extension=extend,
+            outliers=6.0,
+            point_distances=DISTANCE,
+        )
+        seconds = time.perf_counter() - start
+        found = diagnose(masses or robot, data, model, point_distances=DISTANCE)
+        causes[found.cause.extension.label if found.cause is not None else "none"] += 1
+        for test, held in places.items():
+            if test != train:
+                urdf_err = evaluate(cal.model, cal.urdf_measurement, cal.urdf_theta, held, cal.extension)
+                after = evaluate(cal.model, cal.measurement, cal.theta, held, cal.extension)
+                out.append(Judged(robot_dir.name, train, test, urdf_err, after, seconds))
+    return out, causes
+
+
+def table(rows: list[Judged], causes: dict[str, Counter[str]]) -> str:
+    """Per robot: held-out mean absolute error and distance error, URDF as is and calibrated."""
+
+    def fig(values: list[float]) -> str:
+        return f"{np.median(values):6.3f} ({max(values):6.3f})"
+
+    lines = [
+        "| robot | placements | URDF as is: MAE, median (worst) [mm] | calibrated: MAE, median (worst) [mm]"
+        " | distance error, URDF / calibrated, median [mm] | diagnose names | time per calibration [s] |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for name in sorted({r.robot for r in rows}):
+        mine = [r for r in rows if r.robot == name]
+        n_places = len({r.train for r in mine})
+
+        def each(attr: str, key: str, group: list[Judged] = mine) -> list[float]:
+            return [float(getattr(getattr(r, attr), key) or 0.0) for r in group]
+
+        named = ", ".join(f"{c} ({k})" for c, k in causes[name].most_common())
+        lines.append(
+            f"| {name} | {n_places} | {fig(each('urdf', 'point_mae_mm'))} "
+            f"| {fig(each('after', 'point_mae_mm'))} "
+            f"| {np.median(each('urdf', 'point_distance_error_mm')):.3f} / "
+            f"{np.median(each('after', 'point_distance_error_mm')):.3f} | {named} "
+            f"| {np.median([r.seconds for r in mine]):.3f} |"
+        )
+    pandas = [r for r in rows if r.robot.startswith("panda")]
+    if pandas:
+        mae = [float(r.after.point_mae_mm or 0.0) for r in pandas]
+        off = [float(r.after.point_distance_error_mm or 0.0) for r in pandas]
+        lines.append(
+            f"\nAll Pandas together ({len(pandas)} train/test combinations): held-out MAE median "
+            f"{np.median(mae):.3f} mm, distance error median {np.median(off):.3f} mm"
+        )
+    return "\n".join(lines)
+
+
+def plot(rows: list[Judged], path: Path) -> None:
+    """Each placement's held-out MAE (median over the calibrations from the robot's other
+    placements), URDF as is and calibrated, on a log scale."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    keys = sorted({(r.robot, r.test) for r in rows})
+    before = [np.median([r.urdf.point_mae_mm for r in rows if (r.robot, r.test) == k]) for k in keys]
+    after = [np.median([r.after.point_mae_mm for r in rows if (r.robot, r.test) == k]) for k in keys]
+    fig, ax = plt.subplots(figsize=(10, 4))
+    x = np.arange(len(keys))
+    ax.bar(x - 0.2, before, 0.4, label="URDF as is")
+    ax.bar(x + 0.2, after, 0.4, label="calibrated on another placement")
+    ax.set_yscale("log")
+    ax.set_xticks(x, [f"{robot}/{test}" for robot, test in keys], rotation=60, ha="right", fontsize=7)
+    ax.set_ylabel("held-out mean distance from the socket [mm]")
+    ax.set_title("MUKCa sockets: each placement judged with models calibrated on the others (median)")
+    ax.grid(axis="y", which="both", alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("datasets", type=Path, help="the shared datasets folder (holding mukca/)")
+    parser.add_argument("--model", default="placements", choices=pincal.MODELS)
+    parser.add_argument("--plot", type=Path, default=FIGURE)
+    parser.add_argument(
+        "--extend",
+        choices=["none", "auto"],
+        default="none",
+        help="calibrate with --extend auto (Pandas: with masses)",
+    )
+    parser.add_argument("--json", type=Path, help="write every judged combination here")
+    args = parser.parse_args()
+    root = args.datasets / "mukca"
+    start = time.perf_counter()
+    rows: list[Judged] = []
+    causes: dict[str, Counter[str]] = {}
+    with tempfile.TemporaryDirectory() as folder:
+        for robot_dir in sorted((root / "data").iterdir()):
+            urdf = root / "urdf" / URDFS[robot_dir.name.split("_")[0]]
+            judged, causes[robot_dir.name] = judge(robot_dir, urdf, args.model, Path(folder), args.extend)
+            rows += judged
+    print(table(rows, causes))
+    plot(rows, args.plot)
+    print(f"\nplot: {args.plot}; whole benchmark {time.perf_counter() - start:.0f} s")
+    if args.json is not None:
+        record: list[dict[str, Any]] = [
+            {
+                "robot": r.robot,
+                "train": r.train,
+                "test": r.test,
+                "urdf": r.urdf.to_dict(),
+                "after": r.after.to_dict(),
+                "seconds": r.seconds,
+            }  # fmt: skip
+            for r in rows
+        ]
+        args.json.write_text(json.dumps(record, indent=1))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,262 @@
+"""Fixed-point constraints: calibration without an instrument (``--measure points``).
+
+The tip (a ball on the flange) is held by hand at a few physical points (sockets of a fixture),
+many times each in different configurations, as in MUKCa (Franzese, Spahn et al. 2025). The
+only knowledge is "same point" within a point's rows and, optionally, known distances between
+points. The unknowns are the points' positions in the base frame (3 each, [m]) and the tip point
+on the flange (3, [m]); the residual of a row is its tip position minus its point's position, so
+the cost grows with the number of rows, not of pairs. A known distance ``D`` between points
+``a`` and ``b`` adds one residual ``w · (|c_a - c_b| - D)``, ``w = √N`` (it is worth as much as
+the rows together: a printed fixture is more exact than a hand-held ball).
+
+Some motions of the whole set-up change no residual (*gauges*): moving the robot's base and
+every point together (3 translations, 3 rotations), and, without a known distance, scaling every
+length (the points, the tool and the links) about the base (base axes). :func:`gauge_directions` finds those
+the fitted parameters can make; the identifiable set holds one parameter per gauge at its
+nominal value, and the report names them (the scale then comes from the URDF alone).
+
+Errors as MUKCa reports them (:func:`point_errors`): each row's distance from its point's mean
+tip position, and ``|distance between two points' means - D|`` per known distance. A held-out
+placement of the fixture is judged the same way: its points are the means of its own rows, the
+robot model is the calibrated one.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .data import Dataset
+from .errors import DataError
+from .options import UNITS
+
+if TYPE_CHECKING:
+    from .kinematics import Frames
+    from .measurements import Problem
+
+#: A known distance between two named points [m].
+PointDistance = tuple[str, str, float]
+#: A gauge is exact when the parameters make its motion to this relative accuracy.
+GAUGE_TOLERANCE = 1e-6
+
+
+def parse_point_distances(text: str | None, units: str = "m") -> tuple[PointDistance, ...]:
+    """``A,B=D[;C,E=F...]`` (D in ``units``) -> ((A, B, D [m]), ...).
+
+    Raises:
+        DataError: a malformed item, a point paired with itself, or a distance that is not > 0.
+    """
+    if text is None or not text.strip():
+        return ()
+    out = []
+    for item in text.replace(" ", "").split(";"):
+        names, _, value = item.partition("=")
+        pair = names.split(",")
+        try:
+            distance = float(value) * UNITS[units]
+        except (ValueError, KeyError):
+            distance = float("nan")
+        if len(pair) != 2 or not all(pair) or not np.isfinite(distance):
+            raise DataError(
+                f"--point-distance {item!r}: write A,B=D (two point names, a distance in {units})"
+            )
+        if pair[0] == pair[1]:
+            raise DataError(f"--point-distance {item!r}: a point's distance to itself is 0")
+        if distance <= 0:
+            raise DataError(f"--point-distance {item!r}: the distance must be positive")
+        out.append((pair[0], pair[1], distance))
+    return tuple(out)
+
+
+def point_index(data: Dataset, points: tuple[str, ...]) -> np.ndarray | None:
+    """Each row's index into ``points`` (the measurement's unknown points), or None when the data
+    names a point that is not among them (or has no point column)."""
+    if data.labels is None:
+        return None
+    where = {name: k for k, name in enumerate(points)}
+    mapped = [where.get(name, -1) for name in data.point_names]
+    if min(mapped, default=0) < 0:
+        return None
+    return np.asarray(mapped, dtype=int)[data.labels]
+
+
+def check_distances(points: tuple[str, ...], distances: tuple[PointDistance, ...]) -> None:
+    """Every point a known distance names is in the data.
+
+    Raises:
+        DataError: naming the unknown point and the data's points.
+    """
+    for a, b, _ in distances:
+        for name in (a, b):
+            if name not in points:
+                raise DataError(
+                    f"--point-distance names point {name!r}, but the data's point column has only "
+                    f"{', '.join(points)}"
+                )
+
+
+def point_means(tips: np.ndarray, labels: np.ndarray, n_points: int) -> np.ndarray:
+    """Mean tip position of each point's rows (n_points, 3) [m]."""
+    counts = np.bincount(labels, minlength=n_points)[:, None]
+    sums = np.zeros((n_points, 3))
+    np.add.at(sums, labels, tips)
+    return sums / np.maximum(counts, 1)
+
+
+def point_errors(
+    tips: np.ndarray, data: Dataset, distances: tuple[PointDistance, ...]
+) -> tuple[np.ndarray, np.ndarray]:
+    """MUKCa's errors: each row's distance from its point's mean tip position (N,) [m], and
+    ``|distance between the means - D|`` for each known distance whose points the data has [m]."""
+    if data.labels is None:
+        raise DataError("fixed-point errors need a point column")
+    means = point_means(tips, data.labels, len(data.point_names))
+    where = {name: k for k, name in enumerate(data.point_names)}
+    known = [(where[a], where[b], d) for a, b, d in distances if a in where and b in where]
+    off = [abs(float(np.linalg.norm(means[a] - means[b])) - d) for a, b, d in known]
+    return np.linalg.norm(tips - means[data.labels], axis=1), np.array(off)
+
+
+def gauge_directions(
+    problem: Problem, theta: np.ndarray, candidates: np.ndarray, scale: np.ndarray
+) -> tuple[np.ndarray, tuple[str, ...]]:
+    """The motions of the whole set-up that the candidate parameters can make and no residual
+    sees, to first order: (P, g) directions in θ and their names.
+
+    Args:
+        problem: a fixed-point problem.
+        theta: where to linearise.
+        candidates: (P,) mask of the parameters that may be fitted.
+        scale: (P,) natural size of each parameter (the least squares are solved in those units).
+    """
+    n_model, m = problem.n_model, problem.measurement
+    points = slice(n_model, n_model + m.n_points)
+    others = np.flatnonzero(candidates)
+    others = others[(others < n_model) | (others >= points.stop)]
+    frames, rot, pos = problem.target_frames(theta)
+    jac = problem.target_jacobian(theta, others, frames, (rot, pos)).reshape(-1, len(others))
+    js = jac * scale[others]
+    centres = problem.point_positions(theta)
+    fields: list[tuple[str, np.ndarray, np.ndarray]] = []
+    for k, axis in enumerate("xyz"):
+        e = np.eye(3)[k]
+        fields.append((f"translation along {axis}", e + 0 * pos, e + 0 * centres))
+    for k, axis in enumerate("xyz"):
+        e = np.eye(3)[k]
+        fields.append((f"rotation about {axis}", np.cross(e, pos), np.cross(e, centres)))
+    if not m.point_distances:
+        fields.append(("scale (no known distance between the points)", pos, centres))
+    directions, names = [], []
+    for name, tip_motion, point_motion in fields:
+        target = tip_motion.reshape(-1)
+        step = np.linalg.lstsq(js, target, rcond=None)[0]
+        if np.linalg.norm(js @ step - target) > GAUGE_TOLERANCE * np.linalg.norm(target):
+            continue  # the parameters cannot make this motion: the data sees it
+        v = np.zeros(problem.n_params)
+        v[others] = step * scale[others]
+        v[points] = point_motion.reshape(-1)
+        directions.append(v)
+        names.append(name)
+    return np.array(directions).T.reshape(problem.n_params, -1), tuple(names)
+
+
+def without_gauges(jacobian: np.ndarray, gauges: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """The Jacobian with the gauge directions (P, g) made exactly blind, in scaled units."""
+    if gauges.shape[1] == 0:
+        return jacobian
+    basis, _ = np.linalg.qr(gauges / scale[:, None])
+    js = jacobian * scale
+    return (js - (js @ basis) @ basis.T) / scale
+
+
+def gauge_reasons(
+    names: tuple[str, ...], held: np.ndarray, gauges: np.ndarray, labels: tuple[str, ...], scale: np.ndarray
+) -> dict[str, str]:
+    """Why a held parameter is held, for the parameter each gauge leans on most."""
+    reasons: dict[str, str] = {}
+    weights = np.abs(gauges / scale[:, None])
+    for g, label in enumerate(labels):
+        share = np.where(held, weights[:, g], 0.0)
+        if share.max() <= 0:
+            continue
+        name = names[int(np.argmax(share))]
+        hint = " (give --point-distance A,B=D): lengths keep the URDF's scale" if "scale" in label else ""
+        reasons.setdefault(name, f"not identifiable from fixed points: the whole set-up's {label}{hint}")
+    return reasons
+
+
+def points_rows(
+    problem: Problem,
+    theta: np.ndarray,
+    cols: np.ndarray | None,
+    frames: Frames,
+    target: tuple[np.ndarray, np.ndarray],
+) -> tuple[np.ndarray, np.ndarray]:
+    """Residuals of fixed-point data [m] (rows, then known distances) and, given columns
+    ``cols``, their Jacobian (else an empty array); ``target``: tip rotations and positions."""
+    m, index = problem.measurement, problem.point_index
+    if index is None:
+        raise DataError("--measure points needs a point column naming one of the fitted points in every row")
+    centres = problem.point_positions(theta)
+    weight = np.sqrt(len(problem.data))
+    where = {name: k for k, name in enumerate(m.points)}
+    known = [(where[a], where[b], d) for a, b, d in m.point_distances]
+    diffs = np.array([centres[a] - centres[b] for a, b, _ in known]).reshape(-1, 3)
+    lengths = np.linalg.norm(diffs, axis=1)
+    misfit = weight * (lengths - np.array([d for _, _, d in known]))
+    res = np.concatenate([(target[1] - centres[index]).reshape(-1), misfit])
+    if cols is None:
+        return res, np.empty((0, 0))
+    jac = problem.target_jacobian(theta, cols, frames, target)  # (N, 3, c): zero for the points
+    first = problem.n_model
+    at = np.flatnonzero((cols >= first) & (cols < first + m.n_points))
+    point, axis = np.divmod(cols[at] - first, 3)
+    for c, k, a in zip(at, point, axis):
+        jac[index == k, a, c] = -1.0
+    rows = np.zeros((len(known), len(cols)))
+    unit = diffs / np.where(lengths > 0, lengths, 1.0)[:, None]
+    for r, (a, b, _) in enumerate(known):
+        rows[r, at] = weight * unit[r, axis] * ((point == a).astype(float) - (point == b))
+    return res, np.vstack([jac.reshape(-1, len(cols)), rows])
+
+
+def read_socket_folder(
+    folder: str | Path, joint_names: Sequence[str], prismatic: Sequence[bool] | None = None
+) -> Dataset:
+    """Fixed-point data in MUKCa's layout: a folder of ``hole_<name>.csv`` files without a
+    header, one row per configuration, one column per chain joint in chain order [rad, m]; the
+    point of a row is its file's ``<name>``.
+
+    Raises:
+        DataError: no such files, a row with the wrong number of values, a value not finite.
+    """
+    folder = Path(folder)
+    files = sorted(folder.glob("hole_*.csv"))
+    if not files:
+        raise DataError(f"{folder}: no hole_<name>.csv files (MUKCa's layout: one file per socket)")
+    blocks, labels = [], []
+    for k, path in enumerate(files):
+        try:
+            values = np.loadtxt(path, delimiter=",", ndmin=2, comments="#")
+        except (OSError, ValueError) as exc:
+            raise DataError(f"{path}: not a table of numbers ({exc})") from None
+        if values.size == 0:
+            raise DataError(f"{path} has no rows")
+        if values.shape[1] != len(joint_names) or not np.all(np.isfinite(values)):
+            raise DataError(
+                f"{path}: each row needs {len(joint_names)} finite joint values "
+                f"({', '.join(joint_names)}), it has {values.shape[1]}"
+            )
+        blocks.append(values)
+        labels.append(np.full(len(values), k))
+    q = np.vstack(blocks)
+    names = tuple(path.stem.removeprefix("hole_") for path in files)
+    prism = np.asarray(prismatic if prismatic is not None else [False] * q.shape[1], dtype=bool)
+    if prism.any():
+        raise DataError(f"{folder}: MUKCa's layout is for revolute arms; write a CSV with a point column")
+    return Dataset(
+        tuple(joint_names), q, np.zeros((len(q), 3)), labels=np.concatenate(labels), point_names=names
+    )
