@@ -260,3 +260,16 @@ def read_socket_folder(
     return Dataset(
         tuple(joint_names), q, np.zeros((len(q), 3)), labels=np.concatenate(labels), point_names=names
     )
+
+
+def blind_jacobian(
+    problem: Problem, theta: np.ndarray, jacobian: np.ndarray, candidates: np.ndarray, scale: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
+    """For fixed-point data, the Jacobian with its gauges made exactly blind, the gauges (P, g)
+    and their names (:func:`gauge_directions`); other data: the Jacobian as it is, no gauges.
+    Linearised, a gauge looks like a gain (shrinking everything shrinks every residual): the
+    identifiable set and the parameter choice both need it gone."""
+    if problem.measurement.kind != "points":
+        return jacobian, np.empty((problem.n_params, 0)), ()
+    gauges, names = gauge_directions(problem, theta, candidates, scale)
+    return without_gauges(jacobian, gauges, scale), gauges, names

@@ -273,6 +273,11 @@ def plan_poses(
     """
     if measure not in MEASURES:
         raise DataError(f"unknown measure {measure!r}: choose one of {', '.join(MEASURES)}")
+    if measure == "points":
+        raise DataError(
+            "plan cannot plan fixed-point data yet: at each point, record configurations that "
+            "move every joint as far as the fixture lets it"
+        )
     if not 0 < n_poses <= candidates:
         raise DataError(f"--poses {n_poses} must be between 1 and the number of candidates ({candidates})")
     point = np.zeros(3) if tool is None else np.asarray(tool, float)

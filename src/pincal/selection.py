@@ -13,10 +13,8 @@ Every candidate is scored in closed form on the problem linearised at the regist
 With ``H`` the hat matrix of the current columns and ``e`` the fit's residual, the residual of
 a group of rows ``g`` predicted by a fit on the other rows is ``(I - H_gg)⁻¹ e_g`` (the PRESS
 identity); adding one column ``u`` (orthonormalised against the current ones) changes ``H`` by
-``u uᵀ`` and ``e`` by ``-u uᵀe``, so a step costs a few small solves per group and candidate. A
-group is one pose (leave-one-out, the default) or one of K folds; for distance data it holds the
-rows of every pair with a pose in the group, as in :func:`pincal.cross_validate`.
-
+``u uᵀ`` and ``e`` by ``-u uᵀe``: a few small solves per group and candidate. A group is a pose
+(leave-one-out) or a fold; for distance data, the rows of every pair with a pose in it.
 :func:`cross_validate_selection` judges the whole procedure (selection, then the nonlinear fit of
 the chosen set) by K-fold cross-validation, the selection re-run on each fold's fitted poses:
 the cross-validated RMS of the chosen step is biased low by the choice itself, this is not.
@@ -33,6 +31,7 @@ from .crossval import cross_validate, fold_indices
 from .data import Dataset
 from .effects import Extension
 from .evaluation import ErrorStats
+from .fixed_points import blind_jacobian
 from .identifiability import RCOND
 from .measurements import Problem, all_pairs
 from .robots import Robot
@@ -197,7 +196,8 @@ def selection_path(
     """
     problem, data = setup.problem, setup.data
     res, jac = setup.linearised(theta)
-    jac = jac * setup.scale
+    fitted = np.array([name not in setup.model.held for name in problem.names])
+    jac = blind_jacobian(problem, theta, jac, fitted, setup.scale)[0] * setup.scale
     n_geo = setup.model.n_params
     tol = RCOND * float(np.max(np.linalg.norm(jac, axis=0)))
     left, sv, _ = np.linalg.svd(jac[:, n_geo:], full_matrices=False)  # always fitted

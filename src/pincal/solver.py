@@ -35,7 +35,7 @@ from .data import Dataset
 from .effects import Extension
 from .errors import DataError, IdentifiabilityError
 from .evaluation import evaluate
-from .fixed_points import PointDistance, gauge_directions, gauge_reasons, without_gauges
+from .fixed_points import PointDistance, blind_jacobian, gauge_reasons
 from .identifiability import RCOND, Identifiability, analyse, check_rank, parameter_scale
 from .kinematics import Chain, forward
 from .lm import levenberg_marquardt
@@ -245,10 +245,7 @@ def identifiable_set(
     preference[:n_model] = 1.0 + 0.05 * np.linspace(0.0, 1.0, n_model)
     preference[n_model:] = 2.0
     jacobian = setup.linearised(theta)[1]
-    gauges, blind = np.empty((problem.n_params, 0)), tuple[str, ...]()
-    if problem.measurement.kind == "points":  # see fixed_points: a parameter held per gauge
-        gauges, blind = gauge_directions(problem, theta, candidates, setup.scale)
-        jacobian = without_gauges(jacobian, gauges, setup.scale)
+    jacobian, gauges, blind = blind_jacobian(problem, theta, jacobian, candidates, setup.scale)
     ident = analyse(jacobian, problem.names, setup.scale, candidates, preference, held, rcond)
     if blind:
         why = gauge_reasons(problem.names, candidates & ~ident.identifiable, gauges, blind, setup.scale)
