@@ -46,7 +46,7 @@ if TYPE_CHECKING:  # the same names for type checkers; at run time each loads on
         cross_validate_selection,
         select_parameters,
     )
-    from .simulation import TrueRobot, hide_effect, random_truth, simulate
+    from .simulation import TrueRobot, hide_effect, points_truth, random_truth, simulate, simulate_points
     from .tool import ToolCalibration, calibrate_tool, read_flange_poses
     from .twists import Twists, chain_twists, gao_k, left_jacobian, nominal_twists, poe_forward
     from .urdf_writer import CalibratedRobot, corrected_urdf, load_calibration, write_corrected_urdf
@@ -119,6 +119,8 @@ _LAZY: dict[str, str] = {
     "hide_effect": "simulation",
     "random_truth": "simulation",
     "simulate": "simulation",
+    "simulate_points": "simulation",
+    "points_truth": "simulation",
     "ToolCalibration": "tool",
     "calibrate_tool": "tool",
     "read_flange_poses": "tool",
@@ -213,6 +215,8 @@ __all__ = [
     "report_json",
     "select_parameters",
     "simulate",
+    "simulate_points",
+    "points_truth",
     "summary",
     "tip_jacobian",
     "write_corrected_urdf",

@@ -2,12 +2,14 @@
 
 The truth is any model with parameters (by default ``placements``: 6-DoF errors of every joint
 origin plus joint zero offsets), seen through an instrument at an unknown pose, measuring a
-point (or a frame) fixed on the tip at an unknown place, with Gaussian noise. Everything is
-seeded and deterministic.
+point (or a frame) fixed on the tip at an unknown place, with Gaussian noise. Fixed-point data
+(:func:`simulate_points`) has no instrument: a ball on the tip is held in sockets, each row the
+commands that put the true ball there. Everything is seeded and deterministic.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -15,7 +17,8 @@ import pinocchio as pin
 
 from .data import Dataset
 from .effects import Extension
-from .kinematics import forward
+from .errors import DataError
+from .kinematics import forward, joint_jacobian, skew
 from .models import Model, PlacementsModel
 from .robots import Robot
 
@@ -171,3 +174,102 @@ def simulate(
     fit = truth.measure(q[:n_fit], noise, rot_noise, seed + 2)
     test = truth.measure(q[n_fit:], noise, rot_noise, seed + 3)
     return truth, fit, test
+
+
+def points_truth(
+    robot: Robot, seed: int = 0, ball: tuple[float, float] = (0.03, 0.08), **errors: float
+) -> TrueRobot:
+    """A random true robot for fixed-point data: :func:`random_truth`'s geometric errors (keyword
+    ``errors``), no instrument, and a ball on the tip at a random direction and a distance drawn
+    in ``ball`` [m] from the tip frame's origin (the tool, unknown to a fit)."""
+    rng = np.random.default_rng(seed + 7919)
+    ball_at = _unit(rng.normal(size=3)) * rng.uniform(*ball)
+    truth = random_truth(robot, seed, instrument=False, **errors)
+    return replace(truth, tool=pin.SE3(np.eye(3), ball_at))
+
+
+def simulate_points(
+    truth: TrueRobot | Robot,
+    points_m: np.ndarray,
+    n_rows: int,
+    noise_m: float,
+    rng: np.random.Generator | int = 0,
+    names: Sequence[str] | None = None,
+    margin: float = 0.05,
+    tol: float = 1e-11,
+) -> Dataset:
+    """Fixed-point data (:mod:`pincal.fixed_points`): the ball held in sockets by hand.
+
+    Each row is a commanded configuration found by damped least squares on the TRUE robot (its
+    geometry, its hidden effect: the joints reach ``q + e(q)``, and its tool: the ball's centre on
+    the tip) from a random start within the joint limits, that puts the ball at its socket plus an
+    isotropic Gaussian error. The instrument of ``truth`` plays no part.
+
+    Args:
+        truth: the true robot (a :class:`~pincal.Robot` is its nominal self, ball at the tip's origin).
+        points_m: (K, 3) the sockets in the base frame [m].
+        n_rows: rows in all, shared out in blocks of (nearly) equal size, point by point.
+        noise_m: 1σ of each coordinate of where the ball really is [m].
+        rng: random generator or seed (starts, then noise).
+        names: the sockets' names (default ``"0"``, ``"1"``...).
+        margin: fraction of each joint range left out at both ends of the starts.
+        tol: the largest position error of a reached row [m].
+
+    Raises:
+        DataError: some socket was not reached from 20 random starts per row.
+    """
+    if isinstance(truth, Robot):
+        zero = np.zeros(PlacementsModel(truth).n_params)
+        truth = TrueRobot(PlacementsModel(truth), zero, pin.SE3.Identity(), pin.SE3.Identity())
+    rng = np.random.default_rng(rng) if isinstance(rng, int) else rng
+    sockets = np.atleast_2d(np.asarray(points_m, dtype=float))
+    labels = np.arange(n_rows) * len(sockets) // n_rows
+    targets = sockets[labels] + rng.normal(0.0, noise_m, (n_rows, 3))
+    q = np.empty((n_rows, truth.robot.n_joints))
+    todo = np.arange(n_rows)
+    for _ in range(20):
+        found, ok = _reach(
+            truth, targets[todo], truth.robot.random_configurations(len(todo), rng, margin), tol
+        )
+        q[todo[ok]] = found[ok]
+        todo = todo[~ok]
+        if not todo.size:
+            break
+    if todo.size:
+        raise DataError(f"rows {todo.tolist()}: their socket is out of the true robot's reach")
+    point_names = tuple(names) if names is not None else tuple(str(k) for k in range(len(sockets)))
+    return Dataset(truth.robot.joint_names, q, np.zeros((n_rows, 3)), labels=labels, point_names=point_names)
+
+
+def ball_positions(truth: TrueRobot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where the true ball is (N, 3) [m] in the base frame for commands ``q`` (N, n), the tip's
+    rotations (N, 3, 3), and the chain's Jacobian of the ball (N, 3, n) [m/rad]."""
+    reached = np.atleast_2d(q)
+    if truth.extension is not None and truth.effect is not None:
+        reached = reached + truth.extension.joint_error(reached, truth.effect)
+    chain = truth.model.chain(truth.x)
+    frames = forward(chain, reached)
+    arm = frames.tip_rotation @ truth.tool.translation
+    jac = joint_jacobian(chain, frames)
+    return frames.tip_translation + arm, frames.tip_rotation, jac[:, :3] - skew(arm) @ jac[:, 3:]
+
+
+def _reach(
+    truth: TrueRobot, targets: np.ndarray, q: np.ndarray, tol: float, damping: float = 1e-4
+) -> tuple[np.ndarray, np.ndarray]:
+    """Damped least squares from ``q`` (N, n), projected on the joint limits after each step (at
+    most 0.2 rad or m): the commands found and which reach their targets (N, 3) within ``tol``
+    (the joint error's own derivative is left out: the error itself is exact)."""
+    lo, hi = truth.robot.lower, truth.robot.upper
+    err = np.full(len(q), np.inf)
+    for _ in range(300):
+        pos, _, jac = ball_positions(truth, q)
+        miss = targets - pos
+        err = np.linalg.norm(miss, axis=1)
+        if err.max(initial=0.0) <= tol:
+            break
+        gram = jac @ np.transpose(jac, (0, 2, 1)) + damping**2 * np.eye(3)
+        dq = (np.transpose(jac, (0, 2, 1)) @ np.linalg.solve(gram, miss[:, :, None]))[:, :, 0]
+        size = np.abs(dq).max(axis=1, keepdims=True)
+        q = np.clip(q + dq * np.minimum(1.0, 0.2 / np.maximum(size, 1e-12)), lo, hi)
+    return q, err <= tol
