@@ -131,7 +131,10 @@ def csv_columns(path: str | Path) -> list[str]:
         raise DataError(f"{path}: malformed header line ({exc})") from None
 
 
-def _rows(path: Path) -> tuple[list[str], list[list[str]]]:
+Table = tuple[list[str], list[list[str]]]
+
+
+def read_rows(path: Path) -> Table:
     """Header and data rows of a CSV (comments dropped), with duplicated columns refused."""
     try:
         rows = list(csv.reader(io.StringIO("\n".join(_read_lines(path)))))
@@ -144,29 +147,12 @@ def _rows(path: Path) -> tuple[list[str], list[list[str]]]:
     return header, rows
 
 
-def read_labels(path: str | Path, column: str = "point") -> tuple[np.ndarray, tuple[str, ...]]:
-    """The ``point`` column of a fixed-point CSV: each row's index into the names (in order of
-    first appearance) and the names.
-
-    Raises:
-        DataError: no such column, or an empty cell.
-    """
-    header, rows = _rows(Path(path))
-    if column not in header:
-        raise DataError(f"{path}: no {column!r} column; fixed-point data names each row's point there")
-    at = header.index(column)
-    names: dict[str, int] = {}
-    labels = np.empty(len(rows), dtype=int)
-    for r, row in enumerate(rows):
-        name = row[at].strip() if at < len(row) else ""
-        if not name:
-            raise DataError(f"{path}: data row {r + 1} has no point name in column {column!r}")
-        labels[r] = names.setdefault(name, len(names))
-    return labels, tuple(names)
-
-
 def read_table(
-    path: str | Path, columns: Sequence[str], what: str, rename: dict[str, str] | None = None
+    path: str | Path,
+    columns: Sequence[str],
+    what: str,
+    rename: dict[str, str] | None = None,
+    table: Table | None = None,
 ) -> np.ndarray:
     """The named columns of a CSV as finite numbers (rows, columns).
 
@@ -175,12 +161,13 @@ def read_table(
         columns: the columns wanted, in order.
         what: how to describe the required columns in an error message.
         rename: optional map from wanted name to the file's column name.
+        table: the file's header and rows, when already read (else the file is read).
 
     Raises:
         DataError: missing file, duplicated or missing columns, no rows, non-numeric or non-finite cells.
     """
     path = Path(path)
-    header, rows = _rows(path)
+    header, rows = table or read_rows(path)
     names = [(rename or {}).get(c, c) for c in columns]
     missing = [c for c in names if c not in header]
     if missing:
@@ -232,13 +219,15 @@ def read_csv(
         raise DataError(f"unknown unit {units!r}: use m or mm")
     header = csv_columns(path)
     if measure == "points" or (measure is None and "point" in header and "x" not in header):
-        return _read_points(path, joint_names, degrees, units, prismatic)
+        from .fixed_points import read_points_csv  # it reads a Dataset: imported here, not above
+
+        return read_points_csv(path, joint_names, degrees, units, prismatic)
     required = [*joint_names, "x", "y", "z"]
     has_quat = all(c in header for c in _QUAT)
     wanted = [*required, *(_QUAT if has_quat else ())]
     values = read_table(path, wanted, f"every chain joint ({', '.join(joint_names)}) and x,y,z")
     n = len(joint_names)
-    q = _joint_values(values[:, :n], degrees, units, prismatic)
+    q = joint_values(values[:, :n], degrees, units, prismatic)
     points = values[:, n : n + 3] * UNITS[units]
     quats = values[:, n + 3 : n + 7] if has_quat else None
     if quats is not None:
@@ -246,7 +235,7 @@ def read_csv(
     return Dataset(tuple(joint_names), q, points, quats)
 
 
-def _joint_values(
+def joint_values(
     values: np.ndarray, degrees: bool, units: str, prismatic: Sequence[bool] | None
 ) -> np.ndarray:
     """Joint columns as read -> radians and metres."""
@@ -256,16 +245,6 @@ def _joint_values(
         q[:, ~prism] = np.deg2rad(q[:, ~prism])
     q[:, prism] *= UNITS[units]
     return q
-
-
-def _read_points(
-    path: str | Path, joint_names: Sequence[str], degrees: bool, units: str, prismatic: Sequence[bool] | None
-) -> Dataset:
-    """Fixed-point data: the joint columns and the ``point`` column."""
-    values = read_table(path, joint_names, f"every chain joint ({', '.join(joint_names)}) and point")
-    labels, names = read_labels(path)
-    q = _joint_values(values, degrees, units, prismatic)
-    return Dataset(tuple(joint_names), q, np.zeros((len(q), 3)), labels=labels, point_names=names)
 
 
 def check_quaternions(path: str | Path, quats: np.ndarray) -> None:

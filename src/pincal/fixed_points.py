@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .data import Dataset
+from .data import Dataset, joint_values, read_rows, read_table
 from .errors import DataError
 from .options import UNITS
 
@@ -221,6 +221,36 @@ def points_rows(
     for r, (a, b, _) in enumerate(known):
         rows[r, at] = weight * unit[r, axis] * ((point == a).astype(float) - (point == b))
     return res, np.vstack([jac.reshape(-1, len(cols)), rows])
+
+
+def read_points_csv(
+    path: str | Path,
+    joint_names: Sequence[str],
+    degrees: bool = False,
+    units: str = "m",
+    prismatic: Sequence[bool] | None = None,
+) -> Dataset:
+    """Fixed-point data as a CSV (read once): a column per chain joint, as :func:`pincal.data.read_csv`
+    reads them, and a ``point`` column naming each row's point (names in order of first appearance).
+
+    Raises:
+        DataError: the file is missing or malformed, no ``point`` column, an empty point name.
+    """
+    table = read_rows(Path(path))
+    what = f"every chain joint ({', '.join(joint_names)}) and point"
+    q = joint_values(read_table(path, joint_names, what, table=table), degrees, units, prismatic)
+    header, rows = table
+    if "point" not in header:
+        raise DataError(f"{path}: no 'point' column; fixed-point data names each row's point there")
+    at = header.index("point")
+    names: dict[str, int] = {}
+    labels = np.empty(len(rows), dtype=int)
+    for r, row in enumerate(rows):
+        name = row[at].strip()  # read_table checked that every row has the header's fields
+        if not name:
+            raise DataError(f"{path}: data row {r + 1} has no point name in column 'point'")
+        labels[r] = names.setdefault(name, len(names))
+    return Dataset(tuple(joint_names), q, np.zeros((len(q), 3)), labels=labels, point_names=tuple(names))
 
 
 def read_socket_folder(

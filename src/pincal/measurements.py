@@ -89,6 +89,7 @@ class Measurement:
     def __post_init__(self) -> None:
         if self.kind not in MEASURES:
             raise DataError(f"unknown measure {self.kind!r}: choose one of {', '.join(MEASURES)}")
+        check_distances(self.points, self.point_distances)
 
     @property
     def n_instrument(self) -> int:
@@ -168,8 +169,6 @@ class Problem:
             )
         self.measured_rotations = data.rotations() if measurement.kind == "pose" else np.empty((0, 3, 3))
         self.point_index = point_index(data, measurement.points) if measurement.kind == "points" else None
-        if measurement.kind == "points":
-            check_distances(measurement.points, measurement.point_distances)
         self._frames: tuple[Any, Any] = (None, None)  # the last θ's frames
 
     @property
