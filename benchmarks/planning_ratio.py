@@ -1,75 +1,128 @@
-"""Planned against random measurement poses: the held-out RMS after calibration, over 10 seeds.
+"""Planned against random measurement poses: the calibrated robot's error on held-out poses.
 
-For each seed: a seeded true robot (:func:`pincal.random_truth`: 0.5 mm / 0.5 mrad joint-origin
-errors, 1 mrad offsets, an unknown tracker pose and reflector), N poses planned by
-:func:`pincal.planning.plan_poses` (D-optimal among 1000 feasible random candidates, the reflector's
-place known to a centimetre as ``--tool-point`` would give it) and N random feasible poses (the
-first N candidates), both measured with 0.03 mm noise and calibrated; both are judged on the same
-1000 random held-out poses. Prints, for N = 20, 30 and 40, how many of the 10 trials the plan wins,
-the median of the ratio planned/random held-out RMS, the same ratio on noise-free held-out
-positions (the model error alone), and the ratio the plan predicted. This is a benchmark, not a
-test: nothing is asserted (``tests/test_planning.py`` asserts the N = 20 result).
+The simulation of issue 15, with the project's simulator: for each seed a true UR5
+(:func:`pincal.random_truth`: 0.5 mm / 0.5 mrad joint-origin errors, 1 mrad offsets, a tracker at
+a random pose 2-4 m away, a reflector at a random direction 50-120 mm from the flange), neither
+the tracker pose nor the reflector told to the planner (``pincal plan`` without
+``--tool-point``). N poses are planned among 2000 feasible candidates; N random feasible poses
+(another seed) are the baseline. Both are measured with 0.03 mm noise and calibrated as
+``pincal calibrate`` does (``params="auto"``); each calibrated robot is judged noise-free on
+500 random held-out poses of the workspace (the model error alone). Prints, for N = 15, 20, 30
+and 40, the wins of the plan over random and the median ratio planned/random, for the default
+I-optimal plan and for the D-optimal one (``--criterion d``).
+
+``--task``: the same for a task region, a 30 cm cube in front of the robot: the I-optimal plan
+for those poses (``pincal plan --task``) against the D-optimal plan, judged on other poses in the
+cube. ``--timing``: seconds to plan 20 of 2000 candidates, one BLAS thread.
 
 Usage::
 
-    python benchmarks/planning_ratio.py [--robot ur5] [--model placements] [--measure position]
+    python benchmarks/planning_ratio.py [--seeds 10] [--sizes 15,20,30,40] [--task] [--timing]
 """
 
 from __future__ import annotations
 
 import argparse
-from dataclasses import replace
+import time
 
 import numpy as np
 
 import pincal
-from pincal.planning import candidate_poses, plan_poses
+from pincal.candidates import candidate_poses
+from pincal.planning import plan_poses
+from pincal.threads import limited
 
-SEEDS = range(10)
 NOISE = 3e-5  # 1σ per coordinate [m]
-ROT_NOISE = 1.5e-4  # 1σ per axis [rad], pose data only
+CANDIDATES = 2000
+CUBE = (np.array([0.25, -0.15, 0.15]), np.array([0.55, 0.15, 0.45]))  # the task region [m]
 
 
-def trial(robot: pincal.Robot, n: int, seed: int, model: str, measure: str, n_test: int) -> dict[str, float]:
-    """Held-out RMS [mm] of the planned and the random poses for one seed, noisy and noise-free."""
-    rot = ROT_NOISE if measure == "pose" else None
-    truth = pincal.random_truth(robot, seed)
-    tool = np.round(truth.tool.translation, 2)
-    plan = plan_poses(robot, n, model=model, measure=measure, seed=seed, tool=tool)
-    test_q = candidate_poses(robot, n_test, 10_000 + seed)
-    test = truth.measure(test_q, NOISE, rot, 20_000 + seed)
-    clean = truth.measure(test_q, 0.0, 0.0 if rot else None, 0)
-    out = {"predicted": plan.planned.predicted_rms_mm / plan.random.predicted_rms_mm}
-    for label, q in (("planned", plan.planned.q), ("random", plan.random.q)):
-        cal = pincal.calibrate(robot, truth.measure(q, NOISE, rot, 30_000 + seed), model, measure, test=test)
-        assert cal.test_after is not None
-        out[label] = cal.test_after.rms_mm
-        meas = replace(cal.measurement, pairs=None)
-        out[label + "_clean"] = pincal.evaluate(cal.model, meas, cal.theta, clean, cal.extension).rms_mm
-    return out
+def truth(robot: pincal.Robot, seed: int) -> pincal.TrueRobot:
+    """The seeded true robot of the issue's simulation."""
+    return pincal.random_truth(robot, seed, tool_distance=(0.05, 0.12))
+
+
+def model_error(
+    robot: pincal.Robot, true: pincal.TrueRobot, q: np.ndarray, judge: np.ndarray, seed: int
+) -> float:
+    """Noise-free held-out RMS [mm] of the robot calibrated on poses ``q``."""
+    clean = true.measure(judge, 0.0, None, 0)
+    cal = pincal.calibrate(robot, true.measure(q, NOISE, None, seed), "placements", test=clean, params="auto")
+    assert cal.test_after is not None
+    return cal.test_after.rms_mm
+
+
+def in_cube(robot: pincal.Robot, n: int, seed: int) -> np.ndarray:
+    """``n`` feasible poses whose flange is in the task cube."""
+    q = candidate_poses(robot, 40 * n, seed)
+    tips = np.array([robot.frame_placement(c).translation for c in q])
+    inside = np.all((tips >= CUBE[0]) & (tips <= CUBE[1]), axis=1)
+    return q[inside][:n]
+
+
+def summary(label: str, ratios: list[float]) -> str:
+    r = np.array(ratios)
+    return f"{label}: wins {int((r < 1).sum())}/{len(r)}, median ratio {np.median(r):.3f}"
+
+
+def workspace(robot: pincal.Robot, sizes: list[int], seeds: range) -> None:
+    print(f"ur5, placements, position; reflector and tracker unknown; {len(seeds)} seeds")
+    for n in sizes:
+        ratios: dict[str, list[float]] = {"i": [], "d": []}
+        for seed in seeds:
+            true, judge = truth(robot, seed), candidate_poses(robot, 500, 10_000 + seed)
+            random = model_error(robot, true, candidate_poses(robot, n, 20_000 + seed), judge, 30_000 + seed)
+            for criterion in ratios:
+                q = plan_poses(robot, n, criterion=criterion, candidates=CANDIDATES, seed=seed).q
+                ratios[criterion].append(model_error(robot, true, q, judge, 30_000 + seed) / random)
+        print(f"N={n}: " + "; ".join(summary(f"{c.upper()}-optimal/random", r) for c, r in ratios.items()))
+
+
+def task_region(robot: pincal.Robot, seeds: range, n: int = 20) -> None:
+    print(f"task: a 30 cm cube in front of the robot, N={n}, I-optimal for the cube against D-optimal")
+    ratios = []
+    for seed in seeds:
+        true, task, judge = (
+            truth(robot, seed),
+            in_cube(robot, 200, seed + 1),
+            in_cube(robot, 300, 40_000 + seed),
+        )
+        errors = [
+            model_error(
+                robot,
+                true,
+                plan_poses(robot, n, criterion=c, task=task, candidates=2000, seed=seed).q,
+                judge,
+                30_000 + seed,
+            )
+            for c in ("i", "d")
+        ]
+        ratios.append(errors[0] / errors[1])
+    print(summary("I-optimal(task)/D-optimal on the cube", ratios))
+
+
+@limited
+def timing(robot: pincal.Robot) -> None:
+    plan_poses(robot, 20, candidates=200)
+    start = time.perf_counter()
+    plan_poses(robot, 20, candidates=2000)
+    print(f"planning 20 of 2000 candidates: {time.perf_counter() - start:.2f} s (one BLAS thread)")
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--robot", default="ur5")
-    parser.add_argument("--model", default="placements")
-    parser.add_argument("--measure", default="position")
-    parser.add_argument("--test-poses", type=int, default=1000)
+    parser.add_argument("--seeds", type=int, default=10)
+    parser.add_argument("--sizes", default="15,20,30,40")
+    parser.add_argument("--task", action="store_true", help="only the task-region comparison")
+    parser.add_argument("--timing", action="store_true", help="only the planning time")
     args = parser.parse_args()
-    robot = pincal.load_robot(args.robot)
-    print(f"{args.robot}, {args.model}, {args.measure}: planned/random held-out RMS over {len(SEEDS)} seeds")
-    for n in (20, 30, 40):
-        runs = [trial(robot, n, seed, args.model, args.measure, args.test_poses) for seed in SEEDS]
-        wins = sum(r["planned"] < r["random"] for r in runs)
-        ratio = np.median([r["planned"] / r["random"] for r in runs])
-        clean = np.median([r["planned_clean"] / r["random_clean"] for r in runs])
-        predicted = np.median([r["predicted"] for r in runs])
-        planned = np.median([r["planned"] for r in runs])
-        random = np.median([r["random"] for r in runs])
-        print(
-            f"N={n}: planned wins {wins}/{len(SEEDS)}, median ratio {ratio:.3f} "
-            f"({planned:.4f} vs {random:.4f} mm); model error alone {clean:.3f}; predicted {predicted:.3f}"
-        )
+    robot = pincal.load_robot("ur5")
+    if args.timing:
+        timing(robot)
+    elif args.task:
+        task_region(robot, range(args.seeds))
+    else:
+        workspace(robot, [int(n) for n in args.sizes.split(",")], range(args.seeds))
 
 
 if __name__ == "__main__":

@@ -10,6 +10,7 @@ angles radians.
 from __future__ import annotations
 
 import numpy as np
+import pinocchio as pin
 
 from .errors import DataError
 from .kinematics import Chain, forward
@@ -86,3 +87,52 @@ def _feasible(
     if reach is not None:
         ok &= np.linalg.norm(tip - centre, axis=1) <= reach
     return ok
+
+
+def socket_candidates(
+    robot: Robot,
+    sockets: np.ndarray,
+    n: int,
+    seed: int = 0,
+    margin: float = 0.05,
+    clearance: float = 0.05,
+    tool: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``n`` configurations (n, n_joints) [rad or m] that put the measured point in a socket, and
+    which socket each is at (n,): damped least squares on the nominal robot from random starts,
+    shared out over the sockets, kept when above the floor (fixed-point data).
+
+    Args:
+        robot: the robot.
+        sockets: (K, 3) where the sockets are in the base frame, roughly [m].
+        n: number wanted.
+        seed: random seed.
+        margin: fraction of each joint range left out at both ends of the starts.
+        clearance: every moving joint origin stays this far above the floor z = 0 [m].
+        tool: the ball's centre on the tip (3,) [m] (default: the tip's origin).
+
+    Raises:
+        DataError: a socket is out of reach, or too few configurations are above the floor.
+    """
+    from .models import PlacementsModel
+    from .simulation import TrueRobot, simulate_points  # the same reaching as the simulator's
+
+    point = np.zeros(3) if tool is None else np.asarray(tool, float)
+    model = PlacementsModel(robot)
+    nominal = TrueRobot(model, np.zeros(model.n_params), pin.SE3.Identity(), pin.SE3(np.eye(3), point))
+    rng = np.random.default_rng(seed)
+    kept_q, kept_at = [], []
+    for _ in range(10):
+        data = simulate_points(nominal, sockets, 2 * n, 0.0, rng, margin=margin, tol=1e-6)
+        ok = _feasible(Chain.nominal(robot), data.q, point, clearance, np.zeros(3), None)
+        kept_q.append(data.q[ok])
+        kept_at.append(np.asarray(data.labels)[ok])
+        if sum(len(k) for k in kept_q) >= n:
+            break
+    q, at = np.concatenate(kept_q), np.concatenate(kept_at)
+    if len(q) < n:
+        raise DataError(
+            f"only {len(q)} configurations reach the sockets above the floor: lower the clearance"
+        )
+    order = rng.permutation(len(q))[:n]
+    return q[order], at[order]

@@ -1,29 +1,23 @@
-"""Measurement poses chosen for identifiability: greedy D-optimal selection among random candidates.
+"""Measurement poses chosen for the accuracy of the calibrated robot, among feasible candidates.
 
 Candidates are random joint configurations within the limits (a ``margin`` of each range left
 out) whose joint origins and measured point stay ``clearance`` above the floor (``z`` in the base
-frame), and optionally within ``reach`` of the instrument. For each, the identification
-Jacobian of the chosen model and measure is the one :func:`pincal.calibrate` uses (model, then
-extension, registration and tool columns), taken at the nominal geometry, restricted to the
-parameters all candidates together identify, with columns scaled by their natural size (a
-rotation is worth its lever arm, see :func:`pincal.identifiability.parameter_scale`) and rows
-whitened by the noise. Poses are then added one at a time, each the candidate that most increases
-``log det(F)`` of the information matrix ``F = Σ Jₖᵀ Jₖ`` (matrix determinant lemma:
-``log det(I + Jₖ F⁻¹ Jₖᵀ)`` for all candidates at once), from ``F = δ I`` with a tiny ``δ``.
+frame), and optionally within ``reach`` of the instrument; for fixed-point data, configurations
+that put the ball in one of the sockets (:func:`pincal.candidates.socket_candidates`). Each
+candidate's rows are those the fit will see (:class:`pincal.information.Information`), for
+several guesses of the measured point on the tip, so that the plan does not rest on one.
 
-Why D-optimality rather than the other observability indices of Sun and Hollerbach (2008), who
-compare O1 = (Π σᵢ)^(1/P)/√m (D-optimal), O2 = σ_min/σ_max, O3 = σ_min (E-optimal), O4 =
-σ_min²/σ_max and O5 = 1/Σ(1/σᵢ) (A-optimal): O1 shrinks the volume of the parameters' confidence
-ellipsoid, the whole uncertainty at once, rather than one worst direction; it is the only index
-whose ranking of designs does not change when columns are rescaled (``det`` scales by a constant),
-so mixing metres and radians cannot bias it; ``log det`` is concave and its greedy maximisation has a
-near-optimality guarantee, with a closed-form gain, so choosing among thousands of candidates
-takes milliseconds; and O2/O4 ignore every singular value but two. Aiming at the held-out error
-itself (I-optimality, ``min tr(W F⁻¹)`` with exchanges) predicted only ~2 % less model error than
-this on the UR5, not worth a second criterion.
+The default criterion ``i`` (I-optimality) minimises what a user feels: the mean squared error of
+the calibrated tip over the *task poses* (the whole feasible workspace by default, or the poses
+the robot will work in), ``tr(W F⁻¹)`` with the registration and tool unknown as they are in the
+fit, on the parameters the fit identifies. ``d`` (D-optimality, ``log det F``) shrinks the volume
+of the parameters' confidence ellipsoid instead: it is blind to which parameters matter where the
+robot works, and to the lever arm of an unknown tool. Both start from a greedy D-optimal design
+and improve it by exchanges (:mod:`pincal.design`). ``benchmarks/planning_ratio.py`` measures
+both against random poses (README, "Planning").
 
 The predicted uncertainty follows from ``cov = F⁻¹``: parameter standard deviations, and the
-held-out RMS on random test poses ``√(mean tr(J_test cov J_testᵀ) + noise)``.
+held-out RMS over the task poses ``√(tr(W cov) + noise)``.
 """
 
 from __future__ import annotations
@@ -32,16 +26,15 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import pinocchio as pin
 
-from .candidates import candidate_poses
-from .data import Dataset, atomic_write
+from .candidates import candidate_poses, socket_candidates
+from .data import atomic_write
+from .design import CRITERIA, exchange, greedy
 from .effects import Extension
 from .errors import DataError, IdentifiabilityError
-from .identifiability import analyse, parameter_scale
-from .kinematics import Chain, forward
-from .measurements import MEASURES, ROTATION_WEIGHT, Measurement, Problem
-from .models import make_model
+from .fixed_points import PointDistance
+from .information import Information, tool_hypotheses
+from .measurements import MEASURES, ROTATION_WEIGHT
 from .robots import Robot
 from .threads import limited
 
@@ -55,7 +48,7 @@ class Design:
         condition_number: of the column-scaled identification Jacobian on the identifiable set.
         log_det: ``log det F`` of the whitened, scaled information matrix (larger is better).
         std: (P,) predicted standard deviation of each identifiable parameter [m or rad].
-        model_rms_mm: predicted RMS model error on random test poses, from parameter uncertainty [mm].
+        model_rms_mm: predicted RMS model error over the task poses, from parameter uncertainty [mm].
         predicted_rms_mm: predicted held-out RMS, measurement noise included [mm].
     """
 
@@ -73,22 +66,25 @@ class Plan:
 
     Attributes:
         robot: the robot.
-        model, measure: what the plan is for.
+        model, measure, criterion: what the plan is for, and how it was chosen.
         names, units: the identifiable parameters (those of ``Design.std``) and their units.
         candidates: (M, n) the feasible random candidates (the first N are the random design).
         chosen: (N,) indices of the planned poses among the candidates, in the order chosen.
         planned, random: the two designs.
+        sockets: (N,) the socket of each planned pose (fixed-point data), else None.
     """
 
     robot: Robot
     model: str
     measure: str
+    criterion: str
     names: tuple[str, ...]
     units: tuple[str, ...]
     candidates: np.ndarray
     chosen: np.ndarray
     planned: Design
     random: Design
+    sockets: np.ndarray | None = None
 
     @property
     def q(self) -> np.ndarray:
@@ -101,7 +97,8 @@ class Plan:
         head = f"  {'':8s} {'cond':>7s} {'log det F':>10s} {'max σ [mm]':>11s} {'max σ [mrad]':>13s}"
         lines = [
             f"{len(self.q)} poses for {self.model}/{self.measure}, {len(self.names)} identifiable "
-            f"parameters, D-optimal among {len(self.candidates)} candidates:",
+            f"parameters, {'I' if self.criterion == 'i' else 'D'}-optimal among {len(self.candidates)} "
+            "candidates:",
             head + f" {'held-out RMS [mm]':>18s} {'of which model':>15s}",
         ]
         for label, d in (("planned", self.planned), ("random", self.random)):
@@ -113,119 +110,21 @@ class Plan:
         return "\n".join(lines)
 
 
-class _Rows:
-    """Whitened, column-scaled identification rows of each pose, on the identifiable parameters."""
-
-    def __init__(
-        self,
-        robot: Robot,
-        model: str,
-        measure: str,
-        q: np.ndarray,
-        tool: np.ndarray,
-        extension: Extension | None,
-        noise: float,
-        rot_noise: float,
-        weight: float,
-    ) -> None:
-        self.mdl = make_model(model, robot)
-        self.measure, self.noise, self.robot, self.extension = measure, noise, robot, extension
-        self.meas = Measurement(
-            "position" if measure == "distance" else measure,
-            fit_instrument=measure != "distance",
-            tool=pin.SE3(np.eye(3), tool),
-            rotation_weight=weight,
-        )
-        self.sigma = np.array([noise] * 3 + [weight * rot_noise] * (3 if measure == "pose" else 0))
-        rows, self.points, problem = self.raw(q)
-        self.names, self.units = problem.names, problem.units
-        units = self.units
-        spread = np.sqrt(np.mean(np.sum((self.points - self.points.mean(0)) ** 2, axis=1)))
-        self.scale = parameter_scale(units, max(0.05, float(spread)))
-        n_model = problem.n_model
-        preference = np.concatenate(
-            [1.0 + 0.05 * np.linspace(0.0, 1.0, n_model), np.full(len(units) - n_model, 2.0)]
-        )
-        flat = self.for_analysis(rows[:100], self.points[:100])  # pairs of 100 poses suffice
-        candidates = np.array([name not in self.mdl.held for name in self.names])
-        self.free = analyse(
-            flat, self.names, self.scale, candidates, preference, dict(self.mdl.held)
-        ).identifiable
-        self.rows = self.whiten(rows)
-
-    def raw(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, Problem]:
-        """Per-pose Jacobian rows (N, r, P) of the point (and pose) at the nominal geometry."""
-        frames = forward(Chain.nominal(self.robot), q)
-        points = frames.tip_translation + frames.tip_rotation @ self.meas.tool.translation
-        quats = np.array([pin.Quaternion(r).coeffs()[[3, 0, 1, 2]] for r in frames.tip_rotation])
-        data = Dataset(self.robot.joint_names, q, points, quats if self.measure == "pose" else None)
-        problem = Problem(self.mdl, self.meas, data, self.extension)
-        jac = problem.jacobian(problem.initial_theta())
-        return jac.reshape(len(q), -1, problem.n_params), points, problem
-
-    def for_analysis(self, rows: np.ndarray, points: np.ndarray) -> np.ndarray:
-        if self.measure != "distance":
-            return rows.reshape(-1, rows.shape[2])
-        i, j = np.triu_indices(len(points), 1)
-        return self.pair_rows(rows[i], rows[j], points[i] - points[j])
-
-    @staticmethod
-    def pair_rows(gi: np.ndarray, gj: np.ndarray, diff: np.ndarray) -> np.ndarray:
-        with np.errstate(invalid="ignore", divide="ignore"):  # a pose paired with itself: no row
-            u = np.nan_to_num(diff / np.linalg.norm(diff, axis=-1, keepdims=True))
-        return np.einsum("...k,...kp->...p", u, gi - gj)
-
-    def whiten(self, rows: np.ndarray) -> np.ndarray:
-        scaled = rows[:, :, self.free] * self.scale[self.free]
-        sigma = self.sigma if self.measure != "distance" else np.full(3, self.noise * np.sqrt(2))
-        return scaled / sigma[None, :, None]
-
-
-def _greedy(rows: _Rows, n: int) -> np.ndarray:
-    """Indices of ``n`` candidates chosen greedily for ``log det F``."""
-    g = rows.rows
-    p = g.shape[2]
-    delta = 1e-8 * float(np.einsum("mrp,mrp->", g, g)) / (len(g) * p)
-    info = delta * np.eye(p)
-    chosen: list[int] = []
-    for _ in range(n):
-        inv = np.linalg.inv(info)
-        if rows.measure == "distance" and chosen:
-            r = _Rows.pair_rows(g[:, None], g[None, chosen], rows.points[:, None] - rows.points[None, chosen])
-        else:
-            r = g
-        gain = np.linalg.slogdet(np.eye(r.shape[1]) + r @ inv @ np.transpose(r, (0, 2, 1)))[1]
-        gain[chosen] = -np.inf
-        k = int(np.argmax(gain))
-        chosen.append(k)
-        info = info + r[k].T @ r[k]
-    return np.array(chosen)
-
-
-def _design(rows: _Rows, q: np.ndarray, test_q: np.ndarray) -> Design:
-    raw, points, _ = rows.raw(q)
-    stacked = rows.for_analysis(raw, points)[:, rows.free] * rows.scale[rows.free]
-    if rows.measure == "distance":
-        info = stacked.T @ stacked / (2 * rows.noise**2)
-    else:
-        white = rows.whiten(raw)
-        info = np.einsum("nrp,nrq->pq", white, white)
+def _design(info: Information, q: np.ndarray, labels: np.ndarray | None, weight: np.ndarray) -> Design:
+    """What a design predicts, with the measured point at ``info.guess``."""
+    raw, tips, _, known = info.raw(q, info.guess, labels=labels)
+    flat = info.for_analysis(info.whiten(raw), tips)
+    fisher = flat.T @ flat + info.prior(known)
+    stacked = np.concatenate([flat, known[:, info.free] * info.scale[info.free] / info.noise])
     sv = np.linalg.svd(stacked, compute_uv=False)
-    cov = np.linalg.pinv(info)
-    test, test_points, _ = rows.raw(test_q)
-    if rows.measure == "distance":
-        i, j = np.triu_indices(len(test_q), 1)
-        jt = rows.pair_rows(test[i], test[j], test_points[i] - test_points[j])[:, None, rows.free]
-        noise2 = 2 * rows.noise**2
-    else:
-        jt, noise2 = test[:, :3, rows.free], 3 * rows.noise**2
-    jt = jt * rows.scale[rows.free]
-    model2 = float(np.mean(np.einsum("trp,pq,trq->t", jt, cov, jt)))
+    cov = np.linalg.pinv(fisher)
+    model2 = float(np.trace(weight @ cov))
+    noise2 = (2 if info.measure == "distance" else 3) * info.noise**2
     return Design(
         q=q,
         condition_number=float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf"),
-        log_det=float(np.linalg.slogdet(info)[1]),
-        std=np.sqrt(np.clip(np.diag(cov), 0.0, None)) * rows.scale[rows.free],
+        log_det=float(np.linalg.slogdet(fisher)[1]),
+        std=np.sqrt(np.clip(np.diag(cov), 0.0, None)) * info.scale[info.free],
         model_rms_mm=np.sqrt(model2) * 1e3,
         predicted_rms_mm=np.sqrt(model2 + noise2) * 1e3,
     )
@@ -238,9 +137,14 @@ def plan_poses(
     *,
     model: str = "placements",
     measure: str = "position",
+    criterion: str = "i",
     candidates: int = 1000,
     seed: int = 0,
     tool: np.ndarray | None = None,
+    tool_tolerance: float | None = None,
+    task: np.ndarray | None = None,
+    sockets: np.ndarray | None = None,
+    point_distances: tuple[PointDistance, ...] = (),
     extension: Extension | str | None = None,
     noise: float = 3e-5,
     rot_noise: float = 1.5e-4,
@@ -251,63 +155,104 @@ def plan_poses(
     reach: float | None = None,
     instrument: np.ndarray | None = None,
 ) -> Plan:
-    """Choose ``n_poses`` measurement poses among ``candidates`` random feasible ones (D-optimal).
+    """Choose ``n_poses`` measurement poses among ``candidates`` feasible ones.
 
     Args:
         robot: the robot.
         n_poses: poses to measure.
         model: the parameterization that will be calibrated.
-        measure: ``position``, ``pose`` or ``distance``.
+        measure: ``position``, ``pose``, ``distance`` or ``points`` (fixed points: ``sockets``).
+        criterion: ``i`` (the calibrated tip's mean squared error over the task poses) or ``d``
+            (log det of the information), see :mod:`pincal.design`.
         candidates: number of random feasible candidates.
-        seed: seed of the candidates (the test poses use ``seed + 1``).
-        tool: the measured point on the tip (3,) [m], if roughly known (default: the tip's origin).
+        seed: seed of the candidates (the default task poses use ``seed + 1``).
+        tool: the measured point on the tip (3,) [m], as roughly known (default: the tip's origin).
+        tool_tolerance: how far the real point may be from ``tool`` [m] (default: 0.01 when
+            ``tool`` is given, else 0.1 from the tip's origin); the plan is judged on the guess
+            and 4 points this far around it (:func:`pincal.information.tool_hypotheses`), its
+            predictions on the one that identifies most (``Information.guess``).
+        task: (T, n) the poses the robot will work in [rad or m] (default: ``n_test`` random
+            feasible poses, the whole workspace).
+        sockets: (K, 3) where the fixed points are, roughly, in the base frame [m] (``points``).
+        point_distances: known distances between the fixed points ((A, B, D [m]), ...).
         extension: a non-geometric effect identified with the geometry (``EFFECT:JOINT``).
         noise: 1σ of each measured coordinate [m]; rot_noise: of each orientation axis [rad].
         rotation_weight: weight of orientation residuals [m/rad] (pose data).
-        n_test: random poses on which the held-out error is predicted.
+        n_test: random task poses when ``task`` is not given.
         margin, clearance, reach, instrument: the feasible set, see :func:`candidate_poses`.
 
     Raises:
-        DataError: unknown measure, too few feasible candidates.
+        DataError: unknown measure or criterion, too few feasible candidates, no sockets.
         IdentifiabilityError: fewer equations than identifiable parameters.
     """
+    _check(measure, criterion, n_poses, candidates, sockets)
+    point = np.zeros(3) if tool is None else np.asarray(tool, float)
+    tolerance = (0.01 if tool is not None else 0.1) if tool_tolerance is None else tool_tolerance
+    tools = tool_hypotheses(tool, tolerance)
+    cand, labels = _candidates(robot, candidates, seed, sockets, margin, clearance, point, instrument, reach)
+    if task is None:
+        task = candidate_poses(robot, n_test, seed + 1, margin, 0.0, clearance, point, instrument, reach)
+    ext = Extension.parse(robot, extension) if isinstance(extension, str) else extension
+    info = Information(
+        robot, model, measure, cand, tools, ext, noise, rot_noise, rotation_weight, labels, point_distances
+    )
+    _check_equations(measure, n_poses, int(info.free.sum()))
+    weights = info.task_weights(np.atleast_2d(task), tools)
+    rows = info.candidate_rows
+    chosen = greedy(rows, len(cand), n_poses, info.priors)
+    chosen = exchange(criterion, rows, len(cand), chosen, info.priors, weights)
+    if labels is not None:  # socket by socket: the ball is moved once
+        chosen = [chosen[k] for k in np.argsort(labels[chosen], kind="stable")]
+    names = tuple(n for n, f in zip(info.names, info.free) if f)
+    units = tuple(u for u, f in zip(info.units, info.free) if f)
+    at = (None, None) if labels is None else (labels[chosen], labels[:n_poses])
+    w = info.task_weights(np.atleast_2d(task), [info.guess])[0]
+    planned, random = _design(info, cand[chosen], at[0], w), _design(info, cand[:n_poses], at[1], w)
+    chosen_ = np.array(chosen)
+    return Plan(robot, model, measure, criterion, names, units, cand, chosen_, planned, random, at[0])
+
+
+def _candidates(
+    robot: Robot, n: int, seed: int, sockets: np.ndarray | None, margin: float, clearance: float,
+    point: np.ndarray, instrument: np.ndarray | None, reach: float | None,
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """Feasible candidates, and the socket each is at (fixed points) or None."""
+    if sockets is not None:
+        return socket_candidates(robot, sockets, n, seed, margin, clearance, point)
+    return candidate_poses(robot, n, seed, margin, 0.0, clearance, point, instrument, reach), None
+
+
+def _check(measure: str, criterion: str, n_poses: int, candidates: int, sockets: np.ndarray | None) -> None:
+    """Refuse what cannot be planned, with what to do."""
     if measure not in MEASURES:
         raise DataError(f"unknown measure {measure!r}: choose one of {', '.join(MEASURES)}")
-    if measure == "points":
-        raise DataError(
-            "plan cannot plan fixed-point data yet: at each point, record configurations that "
-            "move every joint as far as the fixture lets it"
-        )
+    if criterion not in CRITERIA:
+        raise DataError(f"unknown criterion {criterion!r}: choose one of {', '.join(CRITERIA)}")
+    if measure == "points" and sockets is None:
+        raise DataError("planning fixed-point data needs where the sockets are: --sockets X,Y,Z;X,Y,Z")
     if not 0 < n_poses <= candidates:
         raise DataError(f"--poses {n_poses} must be between 1 and the number of candidates ({candidates})")
-    point = np.zeros(3) if tool is None else np.asarray(tool, float)
 
-    def feasible(n: int, at: int) -> np.ndarray:
-        return candidate_poses(robot, n, at, margin, 0.0, clearance, point, instrument, reach)
 
-    cand, test_q = feasible(candidates, seed), feasible(n_test, seed + 1)
-    ext = Extension.parse(robot, extension) if isinstance(extension, str) else extension
-    rows = _Rows(robot, model, measure, cand, point, ext, noise, rot_noise, rotation_weight)
-    n_free = int(rows.free.sum())
-    per_pose = 3 if measure == "position" else 6 if measure == "pose" else (n_poses - 1) / 2
+def _check_equations(measure: str, n_poses: int, n_free: int) -> None:
+    """Refuse a plan with fewer equations than identifiable parameters."""
+    per_pose = {"position": 3, "pose": 6, "points": 3}.get(measure, (n_poses - 1) / 2)
     if n_poses * per_pose <= n_free:
-        need = n_free // 3 + 2 if measure == "position" else n_free // 6 + 2 if measure == "pose" else None
+        need = {"position": n_free // 3 + 2, "points": n_free // 3 + 2, "pose": n_free // 6 + 2}.get(measure)
         raise IdentifiabilityError(
             f"{n_poses} poses give {int(n_poses * per_pose)} equations for {n_free} identifiable parameters: "
             f"plan more poses" + (f" (at least {need})" if need else "")
         )
-    chosen = _greedy(rows, n_poses)
-    names = tuple(n for n, f in zip(rows.names, rows.free) if f)
-    units = tuple(u for u, f in zip(rows.units, rows.free) if f)
-    planned, random = _design(rows, cand[chosen], test_q), _design(rows, cand[:n_poses], test_q)
-    return Plan(robot, model, measure, names, units, cand, chosen, planned, random)
 
 
 def write_poses(path: str | Path, plan: Plan, degrees: bool = False) -> None:
-    """Write the planned poses as a CSV with a column per joint (radians, or degrees), atomically."""
+    """Write the planned poses as a CSV with a column per joint (radians, or degrees), and for
+    fixed-point data a ``point`` column naming the socket, atomically."""
     q = plan.q.copy()
     revolute = ~np.array(plan.robot.prismatic)
     if degrees:
         q[:, revolute] = np.rad2deg(q[:, revolute])
-    lines = [",".join(plan.robot.joint_names)] + [",".join(repr(float(v)) for v in row) for row in q]
+    sockets = [""] * len(q) if plan.sockets is None else [f",{k}" for k in plan.sockets]
+    head = ",".join(plan.robot.joint_names) + ("" if plan.sockets is None else ",point")
+    lines = [head] + [",".join(repr(float(v)) for v in row) + at for row, at in zip(q, sockets)]
     atomic_write(path, "\n".join(lines) + "\n")

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -96,6 +97,7 @@ def random_truth(
     offset_std: float = 1e-3,
     instrument: bool = True,
     tool_std: float = 0.05,
+    tool_distance: tuple[float, float] | None = None,
 ) -> TrueRobot:
     """A random true robot: placement errors, joint offsets, instrument pose and tool point.
 
@@ -107,6 +109,8 @@ def random_truth(
         offset_std: 1σ of each joint's zero offset [rad] (or [m] for prismatic joints).
         instrument: place the instrument at a random pose 2-4 m away; False puts it at the base.
         tool_std: 1σ of each coordinate of the measured point on the tip [m].
+        tool_distance: instead, the point at a random direction and a distance drawn uniformly
+            in this range from the tip frame's origin [m].
     """
     rng = np.random.default_rng(seed)
     model = PlacementsModel(robot)
@@ -123,6 +127,8 @@ def random_truth(
             pin.exp3(rng.uniform(-np.pi, np.pi) * _unit(rng.normal(size=3))), direction * rng.uniform(2, 4)
         )
     tool = pin.SE3(pin.exp3(rng.normal(0.0, 0.3, 3)), rng.normal(0.0, tool_std, 3))
+    if tool_distance is not None:
+        tool.translation = _unit(rng.normal(size=3)) * rng.uniform(*tool_distance)
     return TrueRobot(model, x.reshape(-1), reg, tool)
 
 
@@ -177,7 +183,7 @@ def simulate(
 
 
 def points_truth(
-    robot: Robot, seed: int = 0, ball: tuple[float, float] = (0.03, 0.08), **errors: float
+    robot: Robot, seed: int = 0, ball: tuple[float, float] = (0.03, 0.08), **errors: Any
 ) -> TrueRobot:
     """A random true robot for fixed-point data: :func:`random_truth`'s geometric errors (keyword
     ``errors``), no instrument, and a ball on the tip at a random direction and a distance drawn

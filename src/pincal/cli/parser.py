@@ -54,6 +54,13 @@ def _vector3(text: str) -> Any:
     return values
 
 
+def _vectors3(text: str) -> Any:
+    """``X,Y,Z;X,Y,Z...`` -> (K, 3)."""
+    import numpy as np
+
+    return np.array([_vector3(item) for item in text.replace(" ", "").split(";") if item])
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``pincal`` command line: one sub-command per task."""
     parser = _Parser(prog="pincal", description="Kinematic calibration of robot arms on Pinocchio.")
@@ -174,7 +181,7 @@ def _add_compensate(sub: Any) -> None:
 
 def _add_plan(sub: Any) -> None:
     """``pincal plan``."""
-    plan = sub.add_parser("plan", help="choose measurement poses for identifiability (D-optimal)")
+    plan = sub.add_parser("plan", help="choose measurement poses for the accuracy of the calibrated robot")
     plan.add_argument("robot", help=f"a .urdf path or a bundled robot ({', '.join(BUNDLED)})")
     plan.add_argument("--tip", help="the measured frame (default: the robot's documented tip)")
     plan.add_argument("--poses", type=int, required=True, help="number of poses to measure")
@@ -185,7 +192,25 @@ def _add_plan(sub: Any) -> None:
     )
     plan.add_argument("--seed", type=_seed, default=0)
     plan.add_argument("--units", choices=sorted(UNITS), default="m", help="unit of lengths given below")
-    plan.add_argument("--tool-point", type=_vector3, help="the measured point on the tip, X,Y,Z (if known)")
+    plan.add_argument(
+        "--criterion", choices=("i", "d"), default="i",
+        help="i: least mean squared error of the calibrated tip over the task poses (default); "
+        "d: largest log det of the information",
+    )
+    plan.add_argument(
+        "--task", type=Path, help="CSV of the poses the robot will work in (default: its whole workspace)"
+    )
+    plan.add_argument("--tool-point", type=_vector3, help="the measured point on the tip, X,Y,Z, roughly")
+    plan.add_argument(
+        "--tool-tolerance", type=float,
+        help="how far the real point may be from --tool-point [units] (default 0.01 m; 0.1 m from the tip)",
+    )
+    plan.add_argument(
+        "--sockets", type=_vectors3, help="with --measure points: where the sockets are, X,Y,Z;X,Y,Z [units]"
+    )
+    plan.add_argument(
+        "--point-distance", metavar="A,B=D[;...]", help="with --sockets: known distances between them [units]"
+    )
     plan.add_argument("--clearance", type=float, default=0.05, help="height above the floor z = 0 [m]")
     plan.add_argument("--instrument", type=_vector3, help="instrument position X,Y,Z in the base frame")
     plan.add_argument("--reach", type=float, help="with --instrument: its range [units]")

@@ -1,38 +1,60 @@
-"""``pincal plan``: measurement poses chosen for identifiability."""
+"""``pincal plan``: measurement poses chosen for the accuracy of the calibrated robot."""
 
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
+from typing import Any
 
-from ..data import UNITS
+import numpy as np
+
+from ..data import UNITS, joint_values, read_table
 from ..errors import DataError
-from ..robots import load_robot
+from ..robots import Robot, load_robot
 from .common import check_outputs, urdf_path
 
 
 def run(args: argparse.Namespace) -> int:
     """Run the command; 0 on success."""
+    from ..fixed_points import parse_point_distances
     from ..planning import plan_poses, write_poses
 
-    check_outputs(args, [args.output], {"input URDF": urdf_path(args.robot)})
+    check_outputs(args, [args.output], {"input URDF": urdf_path(args.robot), "task poses": args.task})
     if args.reach is not None and args.instrument is None:
         raise DataError("--reach needs --instrument X,Y,Z (where the instrument stands)")
+    if (args.sockets is not None) != (args.measure == "points"):
+        raise DataError("--sockets X,Y,Z;X,Y,Z and --measure points go together: where the ball is held")
     robot = load_robot(args.robot, tip=args.tip)
     scale = UNITS[args.units]
+
+    def length(value: Any) -> Any:
+        return None if value is None else value * scale
+
     plan = plan_poses(
         robot,
         args.poses,
         model=args.model,
         measure=args.measure,
+        criterion=args.criterion,
         candidates=args.candidates,
         seed=args.seed,
-        tool=None if args.tool_point is None else args.tool_point * scale,
+        tool=length(args.tool_point),
+        tool_tolerance=length(args.tool_tolerance),
+        task=None if args.task is None else read_joints(args.task, robot, args.degrees),
+        sockets=length(args.sockets),
+        point_distances=parse_point_distances(args.point_distance, args.units),
         extension=args.extend,
         clearance=args.clearance,
-        reach=None if args.reach is None else args.reach * scale,
-        instrument=None if args.instrument is None else args.instrument * scale,
+        reach=length(args.reach),
+        instrument=length(args.instrument),
     )
     print(plan.summary())
     write_poses(args.output, plan, args.degrees)
     print(f"written to {args.output}")
     return 0
+
+
+def read_joints(path: Path, robot: Robot, degrees: bool) -> np.ndarray:
+    """The joint columns of a CSV (radians, or degrees with ``degrees``; prismatic in metres)."""
+    values = read_table(path, robot.joint_names, "a column per joint: " + ",".join(robot.joint_names))
+    return joint_values(values, degrees, "m", robot.prismatic)
