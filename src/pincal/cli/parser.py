@@ -78,7 +78,11 @@ def _add_calibrate(sub: Any) -> None:
     cal.add_argument("--seed", type=_seed, default=0, help="seed of the --holdout split")
     cal.add_argument("--report", type=Path, help="write the JSON report here")
     cal.add_argument(
-        "-o", "--output", type=Path, help="write the corrected URDF here (and NAME.calibration.json)"
+        "-o",
+        "--output",
+        type=Path,
+        help="write the corrected URDF here (and NAME.calibration.json); a .yaml name writes a UR "
+        "kinematics YAML (ur_description's format) instead",
     )
     cal.add_argument(
         "--add-frame", metavar="NAME", help="with -o: add a fixed frame NAME at the calibrated tool"
@@ -150,6 +154,7 @@ def _add_tcp(sub: Any) -> None:
     tcp.add_argument("--robot", help="compute flange poses from joint columns with this robot (URDF or name)")
     tcp.add_argument("--tip", help="with --robot: the flange frame (default: the robot's tip)")
     tcp.add_argument("--degrees", action="store_true", help="with --robot: joint values in degrees")
+    _add_robot_options(tcp, "--robot")
     _add_force(tcp)
 
 
@@ -159,6 +164,7 @@ def _add_compensate(sub: Any) -> None:
         "compensate", help="joint commands that make the calibrated robot reach the program"
     )
     comp.add_argument("robot", help="the nominal robot the program was written for (URDF or bundled name)")
+    _add_robot_options(comp)
     comp.add_argument(
         "calibration", type=Path, help="the corrected URDF 'calibrate -o' wrote (sidecar beside)"
     )
@@ -175,7 +181,8 @@ def _add_compensate(sub: Any) -> None:
 def _add_plan(sub: Any) -> None:
     """``pincal plan``."""
     plan = sub.add_parser("plan", help="choose measurement poses for identifiability (D-optimal)")
-    plan.add_argument("robot", help=f"a .urdf path or a bundled robot ({', '.join(BUNDLED)})")
+    plan.add_argument("robot", help=f"a .urdf or .xacro path or a bundled robot ({', '.join(BUNDLED)})")
+    _add_robot_options(plan)
     plan.add_argument("--tip", help="the measured frame (default: the robot's documented tip)")
     plan.add_argument("--poses", type=int, required=True, help="number of poses to measure")
     plan.add_argument("--model", choices=MODELS, default="placements")
@@ -200,6 +207,7 @@ def _add_twists(sub: Any) -> None:
     tw = sub.add_parser("twists", help="print the chain's nominal joint twists, checked against Pinocchio")
     tw.add_argument("robot")
     tw.add_argument("--tip")
+    _add_robot_options(tw)
 
 
 def _params(text: str) -> str | tuple[str, ...]:
@@ -221,12 +229,37 @@ def _params(text: str) -> str | tuple[str, ...]:
     return names
 
 
+def _add_robot_options(cmd: argparse.ArgumentParser, flag: str = "ROBOT") -> None:
+    """How ROBOT is read: a xacro's arguments and packages, a UR kinematics YAML on top."""
+    cmd.add_argument(
+        "--xacro-arg",
+        action="append",
+        default=[],
+        metavar="NAME:=VALUE",
+        help=f"an argument of a .xacro {flag} (repeatable)",
+    )
+    cmd.add_argument(
+        "--package-path",
+        action="append",
+        default=[],
+        metavar="PKG=DIR",
+        help="the folder $(find PKG) means in a xacro (repeatable; else ROS_PACKAGE_PATH is searched)",
+    )
+    cmd.add_argument(
+        "--kinematics",
+        type=Path,
+        metavar="FILE.yaml",
+        help=f"a UR kinematics YAML (ur_description's format) applied on the UR {flag}",
+    )
+
+
 def _add_force(cmd: argparse.ArgumentParser) -> None:
     cmd.add_argument("--force", action="store_true", help="replace output files that exist already")
 
 
 def _add_data_options(cmd: argparse.ArgumentParser) -> None:
-    cmd.add_argument("robot", help=f"a .urdf path or a bundled robot ({', '.join(BUNDLED)})")
+    cmd.add_argument("robot", help=f"a .urdf or .xacro path or a bundled robot ({', '.join(BUNDLED)})")
+    _add_robot_options(cmd)
     cmd.add_argument(
         "data", type=Path, help="measurement CSV (see contracts.md), or a folder of hole_<name>.csv files"
     )

@@ -7,7 +7,7 @@ import argparse
 from ..data import UNITS
 from ..errors import DataError
 from ..robots import load_robot
-from .common import check_outputs, urdf_path
+from .common import check_outputs, robot_options, urdf_path
 
 
 def run(args: argparse.Namespace) -> int:
@@ -17,7 +17,7 @@ def run(args: argparse.Namespace) -> int:
     check_outputs(args, [args.output], {"input URDF": urdf_path(args.robot)})
     if args.reach is not None and args.instrument is None:
         raise DataError("--reach needs --instrument X,Y,Z (where the instrument stands)")
-    robot = load_robot(args.robot, tip=args.tip)
+    robot = load_robot(args.robot, tip=args.tip, **robot_options(args))
     scale = UNITS[args.units]
     plan = plan_poses(
         robot,
