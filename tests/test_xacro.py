@@ -7,6 +7,7 @@ argument or a broken xacro is one ``pincal: error:`` line naming what to fix.
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -65,7 +66,7 @@ def test_the_argument_and_the_included_macro_make_the_chain() -> None:
 def test_ros_package_path_finds_the_package(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     """Without --package-path, a folder on ROS_PACKAGE_PATH (the package below it, or a package
     whose package.xml names it) answers $(find)."""
-    monkeypatch.setenv("ROS_PACKAGE_PATH", f"{tmp_path}:{DATA.parent}")
+    monkeypatch.setenv("ROS_PACKAGE_PATH", os.pathsep.join([str(tmp_path), str(DATA.parent)]))
     robot = pincal.load_robot(XACRO)
     assert robot.placements[2].translation[0] == pytest.approx(0.30, abs=1e-12)
     assert find_package("pincal_test_parts") == PARTS
@@ -94,7 +95,9 @@ def test_calibrates_end_to_end(capsys: pytest.CaptureFixture[str], tmp_path: Pat
     assert "<xacro:" not in out.read_text()
     calibrated = pincal.load_calibration(out)
     assert calibrated.instrument_T_base is not None
-    predicted = np.array([calibrated.instrument_T_base.act(calibrated.tool_pose(q).translation) for q in test.q])
+    predicted = np.array(
+        [calibrated.instrument_T_base.act(calibrated.tool_pose(q).translation) for q in test.q]
+    )
     assert np.sqrt(np.mean(np.sum((predicted - test.points) ** 2, axis=1))) < 2e-4
     assert calibrated.robot.joint_names == robot.joint_names
 
@@ -104,10 +107,14 @@ def test_every_robot_command_takes_the_xacro(capsys: pytest.CaptureFixture[str],
     options = ("--package-path", PACKAGE, "--xacro-arg", f"upper_length:={UPPER}")
     code, out, err = _run(capsys, "twists", XACRO, *options)
     assert code == 0 and "joint_6" in out, err
-    code, _, err = _run(capsys, "plan", XACRO, "--poses", "12", "--candidates", "200", "-o", tmp_path / "p.csv", *options)
+    code, _, err = _run(
+        capsys, "plan", XACRO, "--poses", "12", "--candidates", "200", "-o", tmp_path / "p.csv", *options
+    )
     assert code == 0, err
     lines = (tmp_path / "p.csv").read_text().splitlines()
-    assert [ln for ln in lines if not ln.startswith("#")][0].split(",")[:6] == [f"joint_{k}" for k in range(1, 7)]
+    assert [ln for ln in lines if not ln.startswith("#")][0].split(",")[:6] == [
+        f"joint_{k}" for k in range(1, 7)
+    ]
 
 
 def test_a_missing_package_is_one_line_naming_it(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
@@ -147,5 +154,7 @@ def test_a_broken_xacro_is_one_line(capsys: pytest.CaptureFixture[str], tmp_path
     assert "cannot process xacro" in _one_error_line(capsys, "twists", broken, "--package-path", PACKAGE)
     assert "is not one" in _one_error_line(capsys, "twists", "ur5", "--xacro-arg", "a:=1")
     entity = tmp_path / "entity.urdf.xacro"
-    entity.write_text('<?xml version="1.0"?>\n<!DOCTYPE r [<!ENTITY e SYSTEM "file:///etc/passwd">]>\n<robot/>')
+    entity.write_text(
+        '<?xml version="1.0"?>\n<!DOCTYPE r [<!ENTITY e SYSTEM "file:///etc/passwd">]>\n<robot/>'
+    )
     assert "DOCTYPE" in _one_error_line(capsys, "twists", entity)

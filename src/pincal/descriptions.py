@@ -17,8 +17,12 @@ import re
 import threading
 from collections.abc import Iterator, Mapping
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from .errors import RobotError
+
+if TYPE_CHECKING:
+    from .ur_yaml import URKinematics
 
 #: Suffixes of the robot files ``load_robot`` reads (a ``.urdf.xacro`` ends in ``.xacro``).
 URDF_SUFFIXES = (".urdf", ".xacro")
@@ -239,7 +243,7 @@ def robot_description(
     path: Path,
     xacro_args: Mapping[str, str] | None = None,
     package_paths: Mapping[str, Path] | None = None,
-    kinematics: str | Path | None = None,
+    kinematics: str | Path | URKinematics | None = None,
 ) -> str:
     """The URDF text of a robot file: a URDF as written, or a xacro processed; then, if
     ``kinematics`` is given, a UR kinematics YAML applied on top
@@ -259,7 +263,8 @@ def robot_description(
         text = read_urdf_text(path)
     if kinematics is not None:
         from .ur_frames import apply_ur_kinematics
-        from .ur_yaml import read_ur_kinematics
+        from .ur_yaml import URKinematics, read_ur_kinematics
 
-        text = apply_ur_kinematics(text, read_ur_kinematics(kinematics))
+        given = kinematics if isinstance(kinematics, URKinematics) else read_ur_kinematics(kinematics)
+        text = apply_ur_kinematics(text, given)
     return text

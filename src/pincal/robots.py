@@ -19,12 +19,16 @@ from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
 
 from .descriptions import URDF_SUFFIXES, check_urdf_text, robot_description
 from .errors import RobotError
+
+if TYPE_CHECKING:
+    from .ur_yaml import URKinematics
 from .options import BUNDLED
 
 _FRAME_PREFERENCE = (pin.FrameType.BODY, pin.FrameType.FIXED_JOINT, pin.FrameType.OP_FRAME)
@@ -229,7 +233,7 @@ def load_robot(
     *,
     xacro_args: Mapping[str, str] | None = None,
     package_paths: Mapping[str, Path] | None = None,
-    kinematics: str | Path | None = None,
+    kinematics: str | Path | URKinematics | None = None,
 ) -> Robot:
     """Load a robot and reduce it to the chain from its base to ``tip``.
 

@@ -33,7 +33,7 @@ import pinocchio as pin
 from lxml import etree
 
 from .data import atomic_write
-from .errors import DataError
+from .errors import DataError, RobotError
 from .robots import Robot
 from .ur_frames import BASE_INERTIA, JOINTS, PARSER, URChain
 
@@ -46,6 +46,13 @@ KEYS = ("x", "y", "z", "roll", "pitch", "yaw")
 #: The unit tags xacro's YAML loader knows (``!degrees 90``), as factors to radians or metres.
 _UNITS = {"!radians": 1.0, "!degrees": math.pi / 180, "!meters": 1.0, "!millimeters": 1e-3}
 _MAX_BYTES = 1_000_000
+#: The bundled URs' nominal DH lengths d1, a2, a3, d4, d5, d6 [m], from which ``ur_description``'s
+#: ``config/<type>/default_kinematics.yaml`` are made (the tests check them against the URDFs).
+DEFAULT_DH = {
+    "ur3": (0.1519, -0.24365, -0.21325, 0.11235, 0.08535, 0.0819),
+    "ur5": (0.089159, -0.425, -0.39225, 0.10915, 0.09465, 0.0823),
+    "ur10": (0.1273, -0.612, -0.5723, 0.163941, 0.1157, 0.0922),
+}
 
 
 @dataclass(frozen=True, eq=False)
@@ -81,6 +88,20 @@ class URKinematics:
         """A hash made from the values, for a file whose source had none."""
         text = " ".join(repr(float(v)) for o in self.origins for v in o.homogeneous[:3].ravel())
         return "calib_pincal_" + hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def default_ur_kinematics(name: str) -> URKinematics:
+    """``ur_description``'s default kinematics of a bundled UR (``ur3``, ``ur5`` or ``ur10``).
+
+    Raises:
+        RobotError: another name.
+    """
+    if name not in DEFAULT_DH:
+        raise RobotError(f"no default UR kinematics for {name!r}: give one of {', '.join(DEFAULT_DH)}")
+    d1, a2, a3, d4, d5, d6 = DEFAULT_DH[name]
+    entries = [(0, 0, d1, 0, 0, 0), (0, 0, 0, math.pi / 2, 0, 0), (a2, 0, 0, 0, 0, 0), (a3, 0, d4, 0, 0, 0),
+               (0, -d5, 0, math.pi / 2, 0, 0), (0, d6, 0, math.pi / 2, math.pi, math.pi)]  # fmt: skip
+    return URKinematics(tuple(pin.SE3(pin.rpy.rpyToMatrix(*e[3:]), np.array(e[:3], float)) for e in entries))
 
 
 def _number(value: float) -> str:

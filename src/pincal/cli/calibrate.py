@@ -8,22 +8,26 @@ from ..data import atomic_write
 from ..errors import DataError
 from ..pipeline import calibrate
 from ..report import report_json, summary
-from ..ur_yaml import read_ur_kinematics, robot_ur_chain, write_ur_kinematics
+from ..ur_yaml import DEFAULT_DH, read_ur_kinematics, robot_ur_chain, write_ur_kinematics
 from ..urdf_writer import check_frame_name, sidecar_path, write_corrected_urdf
-from .common import chain, check_outputs, end_progress, fit_options, load_data, progress_line, urdf_path
+from .common import (
+    chain,
+    check_outputs,
+    end_progress,
+    fit_options,
+    load_data,
+    progress_line,
+    ur_yaml_output,
+    urdf_path,
+)
 
 #: ``--nested`` -> the ``nested`` argument of :func:`pincal.calibrate`.
 NESTED = {"auto": None, "yes": True, "no": False}
 
 
-def _yaml_output(args: argparse.Namespace) -> bool:
-    """True when ``-o`` names a UR kinematics YAML (``.yaml`` or ``.yml``)."""
-    return args.output is not None and args.output.suffix.lower() in (".yaml", ".yml")
-
-
 def _check_arguments(args: argparse.Namespace) -> None:
     """Refuse option combinations that cannot work, before anything is read."""
-    if args.add_frame is not None and (args.output is None or _yaml_output(args)):
+    if args.add_frame is not None and (args.output is None or ur_yaml_output(args)):
         raise DataError("--add-frame needs -o FILE.urdf")
     check_frame_name(args.add_frame)
     if args.test is not None and args.holdout is not None:
@@ -42,8 +46,10 @@ def run(args: argparse.Namespace) -> int:
     """Run the command; 0 on success."""
     _check_arguments(args)
     robot = chain(args)
-    if _yaml_output(args):
+    if ur_yaml_output(args):
         robot_ur_chain(robot)  # refused before the fit, not after
+        if args.kinematics is None and args.robot in DEFAULT_DH:
+            print(f"{args.robot} in ur_description's frames, from its default kinematics (nominal)")
     data = load_data(args.data, robot, args)
     test = load_data(args.test, robot, args) if args.test is not None else None
     if args.holdout is not None:
@@ -69,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
     end_progress(progress)
     print(summary(cal, data))
     extra = {}
-    if _yaml_output(args):
+    if ur_yaml_output(args):
         source = None if args.kinematics is None else read_ur_kinematics(args.kinematics).calibration_hash
         yaml, side = write_ur_kinematics(cal, args.output, source)
         print(f"UR kinematics YAML written to {yaml}; registration and tool (not in it) to {side}")

@@ -25,15 +25,25 @@ def urdf_path(robot: str | None) -> Path | None:
     return bundled_urdf(robot) if robot in BUNDLED else Path(robot)
 
 
+def ur_yaml_output(args: argparse.Namespace) -> bool:
+    """True when ``-o`` names a UR kinematics YAML (``.yaml`` or ``.yml``)."""
+    output = getattr(args, "output", None)
+    return output is not None and Path(output).suffix.lower() in (".yaml", ".yml")
+
+
 def robot_options(args: argparse.Namespace) -> dict[str, Any]:
     """Keyword arguments of :func:`pincal.load_robot` from ``--xacro-arg``, ``--package-path``
-    and ``--kinematics``."""
+    and ``--kinematics`` (for a bundled UR written as a UR YAML: ``ur_description``'s default)."""
     from ..descriptions import parse_package_paths, parse_xacro_args
+    from ..ur_yaml import DEFAULT_DH, default_ur_kinematics
 
+    kinematics = getattr(args, "kinematics", None)
+    if kinematics is None and ur_yaml_output(args) and args.robot in DEFAULT_DH:
+        kinematics = default_ur_kinematics(args.robot)
     return {
         "xacro_args": parse_xacro_args(getattr(args, "xacro_arg", None)),
         "package_paths": parse_package_paths(getattr(args, "package_path", None)),
-        "kinematics": getattr(args, "kinematics", None),
+        "kinematics": kinematics,
     }
 
 
