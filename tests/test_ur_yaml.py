@@ -34,6 +34,7 @@ from pincal.ur_yaml import (
 
 KEYS = ("x", "y", "z", "roll", "pitch", "yaw")
 FACTORY_HASH = "calib_12788084448423163542"
+URDF_HASH = "calib_5571163327412394921"
 
 
 def _rpy(roll: float, pitch: float, yaw: float) -> np.ndarray:
@@ -204,6 +205,10 @@ def _ur_description_urdf(entries: list[tuple[float, ...]]) -> str:
             f'<origin xyz="{xyz}" rpy="{rpy}"/><axis xyz="0 0 1"/>'
             '<limit lower="-6.283" upper="6.283" effort="150" velocity="3.15"/></joint>'
         )
+    parts.append(  # as ur.ros2_control.xacro writes the YAML's hash
+        '<ros2_control name="ur" type="system"><hardware><plugin>ur_robot_driver/URPositionHardwareInterface'
+        f'</plugin><param name="kinematics/hash">{URDF_HASH}</param></hardware></ros2_control>'
+    )
     return "\n".join([*parts, "</robot>"]) + "\n"
 
 
@@ -260,7 +265,7 @@ def test_ur_description_urdf_takes_the_yaml_as_is(
     capsys: pytest.CaptureFixture[str], files: dict[str, Path], tmp_path: Path
 ) -> None:
     """A URDF in ur_description's frames takes the YAML's origins unchanged, and writes a YAML
-    without --kinematics."""
+    without --kinematics, with the hash of its ros2_control tag."""
     urdf = tmp_path / "ur5_description.urdf"
     urdf.write_text(_ur_description_urdf(_default_entries("ur5")))
     assert _max_gap(pincal.load_robot(urdf), files["ur5"]) < 1e-12
@@ -274,6 +279,7 @@ def test_ur_description_urdf_takes_the_yaml_as_is(
     )
     assert code == 0, err
     assert _predicts(tmp_path / "k.yaml", tmp_path / "k.calibration.json", test) < 1.5e-4
+    assert read_ur_kinematics(tmp_path / "k.yaml").calibration_hash == URDF_HASH
 
 
 def test_what_cannot_be_a_ur_yaml_is_one_line(

@@ -24,6 +24,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -46,6 +47,7 @@ KEYS = ("x", "y", "z", "roll", "pitch", "yaw")
 #: The unit tags xacro's YAML loader knows (``!degrees 90``), as factors to radians or metres.
 _UNITS = {"!radians": 1.0, "!degrees": math.pi / 180, "!meters": 1.0, "!millimeters": 1e-3}
 _MAX_BYTES = 1_000_000
+_HASH_PARAM = re.compile(r"<param\s+name\s*=\s*[\"']kinematics/hash[\"']\s*>([^<]*)</param>")
 #: The bundled URs' nominal DH lengths d1, a2, a3, d4, d5, d6 [m], from which ``ur_description``'s
 #: ``config/<type>/default_kinematics.yaml`` are made (the tests check them against the URDFs).
 DEFAULT_DH = {
@@ -187,12 +189,16 @@ def calibrated_ur_kinematics(cal: Calibration, calibration_hash: str | None = No
 
     Args:
         cal: a calibration of a UR robot in ``ur_description``'s frames (:func:`robot_ur_chain`).
-        calibration_hash: the ``hash`` to write (the source YAML's); None makes one.
+        calibration_hash: the ``hash`` to write (the source YAML's); None takes the URDF's
+            ``kinematics/hash`` parameter (``ur_description``'s ros2_control tag), else makes one.
     """
     from .urdf_writer import corrected_origins
 
     chain = robot_ur_chain(cal.robot)
     origins = corrected_origins(cal)
+    if calibration_hash is None:  # ur_description writes it into its ros2_control tag
+        found = _HASH_PARAM.search(cal.robot.urdf_text)
+        calibration_hash = found.group(1).strip() if found else None
     return URKinematics(tuple(origins[chain.prefix + j] for j in JOINTS), calibration_hash)
 
 
