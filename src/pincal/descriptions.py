@@ -170,7 +170,7 @@ def _resolving(package_paths: Mapping[str, Path] | None) -> Iterator[None]:
 
 
 def _cause(exc: BaseException) -> BaseException | None:
-    """A :class:`PincalError` xacro wrapped (in its ``exc`` attribute or as a cause), or None."""
+    """A :class:`RobotError` xacro wrapped (in its ``exc`` attribute or as a cause), or None."""
     seen: set[int] = set()
     todo: list[BaseException | None] = [exc]
     while todo:
