@@ -25,6 +25,7 @@ if TYPE_CHECKING:  # the same names for type checkers; at run time each loads on
     from .crossval import CrossValidation, cross_validate
     from .data import Dataset, Targets, read_csv, read_program, write_csv
     from .demo import gao2013_data
+    from .descriptions import xacro_to_urdf
     from .diagnose import Candidate, Diagnosis
     from .effects import EFFECTS, Extension
     from .evaluation import ErrorStats, distance_errors, evaluate, pose_errors
@@ -49,6 +50,13 @@ if TYPE_CHECKING:  # the same names for type checkers; at run time each loads on
     from .simulation import TrueRobot, hide_effect, points_truth, random_truth, simulate, simulate_points
     from .tool import ToolCalibration, calibrate_tool, read_flange_poses
     from .twists import Twists, chain_twists, gao_k, left_jacobian, nominal_twists, poe_forward
+    from .ur_yaml import (
+        URKinematics,
+        calibrated_ur_kinematics,
+        default_ur_kinematics,
+        read_ur_kinematics,
+        write_ur_kinematics,
+    )
     from .urdf_writer import CalibratedRobot, corrected_urdf, load_calibration, write_corrected_urdf
 
 __version__ = "0.1.0"
@@ -134,6 +142,12 @@ _LAZY: dict[str, str] = {
     "corrected_urdf": "urdf_writer",
     "load_calibration": "urdf_writer",
     "write_corrected_urdf": "urdf_writer",
+    "URKinematics": "ur_yaml",
+    "calibrated_ur_kinematics": "ur_yaml",
+    "default_ur_kinematics": "ur_yaml",
+    "read_ur_kinematics": "ur_yaml",
+    "write_ur_kinematics": "ur_yaml",
+    "xacro_to_urdf": "descriptions",
 }
 
 __all__ = [
@@ -175,9 +189,11 @@ __all__ = [
     "ToolCalibration",
     "TrueRobot",
     "Twists",
+    "URKinematics",
     "all_pairs",
     "calibrate",
     "calibrate_tool",
+    "calibrated_ur_kinematics",
     "candidate_poses",
     "chain_twists",
     "check_columns",
@@ -187,6 +203,7 @@ __all__ = [
     "corrected_urdf",
     "cross_validate",
     "cross_validate_selection",
+    "default_ur_kinematics",
     "distance_errors",
     "evaluate",
     "find_outliers",
@@ -211,6 +228,7 @@ __all__ = [
     "read_csv",
     "read_flange_poses",
     "read_program",
+    "read_ur_kinematics",
     "report_dict",
     "report_json",
     "select_parameters",
@@ -223,6 +241,8 @@ __all__ = [
     "write_csv",
     "write_poses",
     "write_program",
+    "write_ur_kinematics",
+    "xacro_to_urdf",
 ]
 
 

@@ -13,18 +13,22 @@ import contextlib
 import importlib.metadata
 import math
 import os
-import re
 import sys
 import tempfile
 from collections.abc import Callable, Iterable, Iterator, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
 
+from .descriptions import URDF_SUFFIXES, check_urdf_text, robot_description
 from .errors import RobotError
+
+if TYPE_CHECKING:
+    from .ur_yaml import URKinematics
 from .options import BUNDLED
 
 _FRAME_PREFERENCE = (pin.FrameType.BODY, pin.FrameType.FIXED_JOINT, pin.FrameType.OP_FRAME)
@@ -67,6 +71,7 @@ class Robot:
         lower: lower joint limits [rad or m] (-inf for continuous joints).
         upper: upper joint limits [rad or m] (+inf for continuous joints).
         urdf_joints: every joint name of the URDF (including those locked or off the chain).
+        urdf_text: the URDF the model was built from (a xacro's output, a kinematics YAML applied).
     """
 
     name: str
@@ -79,6 +84,7 @@ class Robot:
     lower: np.ndarray
     upper: np.ndarray
     urdf_joints: tuple[str, ...] = ()
+    urdf_text: str = field(default="", repr=False)
 
     @property
     def n_joints(self) -> int:
@@ -149,8 +155,6 @@ class Robot:
         return lo + span * (margin + (1 - 2 * margin) * rng.random((n, self.n_joints)))
 
 
-_DOCTYPE = re.compile(r"<!DOCTYPE", re.IGNORECASE)
-_DECLARATION = re.compile(r"<!(ENTITY|ELEMENT|ATTLIST)|\b(SYSTEM|PUBLIC)\b")
 MAX_URDF_BYTES = 50_000_000  # [bytes] far above any robot description
 
 
@@ -173,13 +177,7 @@ def read_urdf_text(path: Path) -> str:
         raise RobotError(f"URDF file not found: {path}") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise RobotError(f"cannot read URDF {path}: {exc}") from None
-    # Declarations anywhere count: a comment may hide the end of the DOCTYPE.
-    if _DOCTYPE.search(text) is not None and _DECLARATION.search(text):
-        raise RobotError(
-            f"URDF {path} has a DOCTYPE that declares entities or an external DTD, which could "
-            "read other files: remove the <!DOCTYPE ...> block (a URDF needs none)"
-        )
-    return text
+    return check_urdf_text(text, path)
 
 
 def _deepest_body(model: pin.Model) -> str:
@@ -232,15 +230,21 @@ def load_robot(
     tip: str | None = None,
     joints: Iterable[str] | None = None,
     locked: Mapping[str, float] | None = None,
+    *,
+    xacro_args: Mapping[str, str] | None = None,
+    package_paths: Mapping[str, Path] | None = None,
+    kinematics: str | Path | URKinematics | None = None,
 ) -> Robot:
     """Load a robot and reduce it to the chain from its base to ``tip``.
 
     Args:
-        robot: a ``.urdf`` path or a bundled name (see :data:`BUNDLED`).
+        robot: a ``.urdf`` or ``.xacro`` path, or a bundled name (see :data:`BUNDLED`).
         tip: the measured frame; defaults to the bundled robot's documented tip, or the last link.
         joints: if given, only these chain joints stay actuated (for example the data's columns);
             the other chain joints are locked.
         locked: values for locked joints [rad or m]; unspecified ones are locked at neutral.
+        xacro_args, package_paths, kinematics: a xacro's arguments and ``$(find)`` folders, and a
+            UR kinematics YAML applied on top (see :func:`pincal.descriptions.robot_description`).
 
     Raises:
         RobotError: unknown name, unreadable URDF, unknown tip frame or joint.
@@ -251,11 +255,12 @@ def load_robot(
         tip = tip or BUNDLED[name][2]
     else:
         path = Path(name)
-        if path.suffix.lower() != ".urdf":
+        if path.suffix.lower() not in URDF_SUFFIXES:
             raise RobotError(f"unknown robot {name!r}: give a .urdf path or one of {', '.join(BUNDLED)}")
         if not path.is_file():
             raise RobotError(f"URDF file not found: {path}")
-    full = _parse_urdf(path)
+    text = robot_description(path, xacro_args, package_paths, kinematics)
+    full = _parse_urdf(path, text)
     if tip is None:
         tip = _deepest_body(full)
     tip_id = _find_frame(full, tip)
@@ -293,17 +298,16 @@ def load_robot(
         lower=lower,
         upper=upper,
         urdf_joints=tuple(full.names[1:]),
+        urdf_text=text,
     )
 
 
-def _parse_urdf(path: Path) -> pin.Model:
-    """The full Pinocchio model of a URDF.
+def _parse_urdf(path: Path, text: str) -> pin.Model:
+    """The full Pinocchio model of a URDF's ``text`` (read from ``path``).
 
     Raises:
-        RobotError: unreadable or refused file (:func:`read_urdf_text`), or a URDF Pinocchio
-            cannot parse (with urdfdom's own error line when it wrote one).
+        RobotError: a URDF Pinocchio cannot parse (with urdfdom's own error line when it wrote one).
     """
-    text = read_urdf_text(path)
     with _stderr_captured() as said:
         try:
             return pin.buildModelFromXML(text)

@@ -60,8 +60,7 @@ def _format(values: np.ndarray) -> str:
 
 def _set_origin(joint: etree._Element, placement: pin.SE3) -> None:
     origin = joint.find("origin")
-    if origin is None:
-        origin = etree.SubElement(joint, "origin")
+    origin = etree.SubElement(joint, "origin") if origin is None else origin
     origin.set("xyz", _format(placement.translation))
     origin.set("rpy", _format(pin.rpy.matrixToRpy(placement.rotation)))
 
@@ -96,12 +95,27 @@ def urdf_chain(cal: Calibration) -> list[pin.SE3]:
     return out
 
 
+def _source(robot: Robot) -> bytes:
+    """The URDF the robot was built from (a xacro's output, a kinematics YAML applied)."""
+    return robot.urdf_text.encode("utf-8") if robot.urdf_text else Path(robot.urdf_path).read_bytes()
+
+
 def _read(robot: Robot) -> Any:
-    """The robot's URDF as an XML tree."""
+    """The robot's URDF as an XML element."""
     try:
-        return etree.parse(str(robot.urdf_path), _PARSER)
+        return etree.fromstring(_source(robot), _PARSER)
     except (OSError, etree.XMLSyntaxError) as exc:
         raise DataError(f"cannot parse URDF {robot.urdf_path}: {exc}") from None
+
+
+def corrected_origins(cal: Calibration, root: etree._Element | None = None) -> dict[str, pin.SE3]:
+    """Each chain joint's corrected ``<origin>`` (in its parent link's frame), by joint name."""
+    joints = {j.get("name"): j for j in (_read(cal.robot) if root is None else root).findall("joint")}
+    out = {}
+    for name, c_tilde, c_nominal in zip(cal.robot.joint_names, urdf_chain(cal), cal.robot.placements):
+        between = c_nominal * _origin(joints[name].find("origin")).inverse()  # K_j: fixed, locked joints
+        out[name] = between.actInv(c_tilde)
+    return out
 
 
 def corrected_urdf(cal: Calibration, add_frame: str | None = None) -> bytes:
@@ -113,20 +127,17 @@ def corrected_urdf(cal: Calibration, add_frame: str | None = None) -> bytes:
             calibrated tool (point, and orientation for pose data) on the tip link.
     """
     robot = cal.robot
-    root = _read(robot).getroot()
+    root = _read(robot)
     check_frame_name(add_frame)
     joints = {j.get("name"): j for j in root.findall("joint")}
-    for name, c_tilde, c_nominal in zip(robot.joint_names, urdf_chain(cal), robot.placements):
-        joint = joints[name]
-        o_nominal = _origin(joint.find("origin"))
-        between = c_nominal * o_nominal.inverse()  # K_j: fixed and locked joints before this origin
-        _set_origin(joint, between.actInv(c_tilde))
+    for name, origin in corrected_origins(cal, root).items():
+        _set_origin(joints[name], origin)
     ball = _ball_joint(root, cal)
     if ball is not None:
         _set_origin(ball, _origin(ball.find("origin")) * pin.SE3(np.eye(3), cal.split()[2].translation))
     if add_frame is not None:
         _add_frame(root, robot.tip, add_frame, cal)
-    return _prolog(Path(robot.urdf_path).read_bytes(), root) + etree.tostring(root, encoding="UTF-8") + b"\n"
+    return _prolog(_source(robot), root) + etree.tostring(root, encoding="UTF-8") + b"\n"
 
 
 def _ball_joint(root: etree._Element, cal: Calibration) -> etree._Element | None:
@@ -183,7 +194,7 @@ def _add_frame(root: etree._Element, tip: str, name: str, cal: Calibration) -> N
 def sidecar(cal: Calibration, urdf_name: str) -> dict[str, Any]:
     """What the URDF cannot hold: the instrument registration and the tool."""
     _, reg, tool = cal.split()
-    ball = cal.measurement.kind == "points" and _ball_joint(_read(cal.robot).getroot(), cal) is not None
+    ball = cal.measurement.kind == "points" and _ball_joint(_read(cal.robot), cal) is not None
     if ball:  # the corrected URDF's tip link is the ball's centre
         tool = pin.SE3.Identity()
 

@@ -8,8 +8,18 @@ from ..data import atomic_write
 from ..errors import DataError
 from ..pipeline import calibrate
 from ..report import report_json, summary
+from ..ur_yaml import DEFAULT_DH, read_ur_kinematics, robot_ur_chain, write_ur_kinematics
 from ..urdf_writer import check_frame_name, sidecar_path, write_corrected_urdf
-from .common import chain, check_outputs, end_progress, fit_options, load_data, progress_line, urdf_path
+from .common import (
+    chain,
+    check_outputs,
+    end_progress,
+    fit_options,
+    load_data,
+    progress_line,
+    ur_yaml_output,
+    urdf_path,
+)
 
 #: ``--nested`` -> the ``nested`` argument of :func:`pincal.calibrate`.
 NESTED = {"auto": None, "yes": True, "no": False}
@@ -17,7 +27,7 @@ NESTED = {"auto": None, "yes": True, "no": False}
 
 def _check_arguments(args: argparse.Namespace) -> None:
     """Refuse option combinations that cannot work, before anything is read."""
-    if args.add_frame is not None and args.output is None:
+    if args.add_frame is not None and (args.output is None or ur_yaml_output(args)):
         raise DataError("--add-frame needs -o FILE.urdf")
     check_frame_name(args.add_frame)
     if args.test is not None and args.holdout is not None:
@@ -36,6 +46,10 @@ def run(args: argparse.Namespace) -> int:
     """Run the command; 0 on success."""
     _check_arguments(args)
     robot = chain(args)
+    if ur_yaml_output(args):
+        robot_ur_chain(robot)  # refused before the fit, not after
+        if args.kinematics is None and args.robot in DEFAULT_DH:
+            print(f"{args.robot} in ur_description's frames, from its default kinematics (nominal)")
     data = load_data(args.data, robot, args)
     test = load_data(args.test, robot, args) if args.test is not None else None
     if args.holdout is not None:
@@ -61,7 +75,12 @@ def run(args: argparse.Namespace) -> int:
     end_progress(progress)
     print(summary(cal, data))
     extra = {}
-    if args.output is not None:
+    if ur_yaml_output(args):
+        source = None if args.kinematics is None else read_ur_kinematics(args.kinematics).calibration_hash
+        yaml, side = write_ur_kinematics(cal, args.output, source)
+        print(f"UR kinematics YAML written to {yaml}; registration and tool (not in it) to {side}")
+        extra = {"ur_kinematics": str(yaml), "sidecar": str(side)}
+    elif args.output is not None:
         urdf, side = write_corrected_urdf(cal, args.output, args.add_frame)
         print(f"corrected URDF written to {urdf}; registration and tool (not in a URDF) to {side}")
         extra = {"urdf": str(urdf), "sidecar": str(side)}

@@ -25,9 +25,31 @@ def urdf_path(robot: str | None) -> Path | None:
     return bundled_urdf(robot) if robot in BUNDLED else Path(robot)
 
 
+def ur_yaml_output(args: argparse.Namespace) -> bool:
+    """True when ``-o`` names a UR kinematics YAML (``.yaml`` or ``.yml``)."""
+    output = getattr(args, "output", None)
+    return output is not None and Path(output).suffix.lower() in (".yaml", ".yml")
+
+
+def robot_options(args: argparse.Namespace) -> dict[str, Any]:
+    """Keyword arguments of :func:`pincal.load_robot` from ``--xacro-arg``, ``--package-path``
+    and ``--kinematics`` (for a bundled UR written as a UR YAML: ``ur_description``'s default)."""
+    from ..descriptions import parse_package_paths, parse_xacro_args
+    from ..ur_yaml import DEFAULT_DH, default_ur_kinematics
+
+    kinematics = getattr(args, "kinematics", None)
+    if kinematics is None and ur_yaml_output(args) and args.robot in DEFAULT_DH:
+        kinematics = default_ur_kinematics(args.robot)
+    return {
+        "xacro_args": parse_xacro_args(getattr(args, "xacro_arg", None)),
+        "package_paths": parse_package_paths(getattr(args, "package_path", None)),
+        "kinematics": kinematics,
+    }
+
+
 def chain(args: argparse.Namespace) -> Robot:
     """The chain; every chain joint needs a column in the data unless ``--lock`` holds it."""
-    chain = load_robot(args.robot, tip=args.tip)
+    chain = load_robot(args.robot, tip=args.tip, **robot_options(args))
     unknown = [j for j in args.lock if j not in chain.joint_names]
     if unknown:
         raise DataError(
@@ -41,7 +63,8 @@ def chain(args: argparse.Namespace) -> Robot:
     if len(args.lock) == chain.n_joints:
         raise DataError("--lock names every joint of the chain: nothing would move")
     print(f"locked at their neutral value: {', '.join(args.lock)}")
-    return load_robot(args.robot, tip=args.tip, joints=[j for j in chain.joint_names if j not in args.lock])
+    joints = [j for j in chain.joint_names if j not in args.lock]
+    return load_robot(args.robot, tip=args.tip, joints=joints, **robot_options(args))
 
 
 def check_outputs(args: argparse.Namespace, outputs: Sequence[Path | None], inputs: dict[str, Any]) -> None:
@@ -52,6 +75,7 @@ def check_outputs(args: argparse.Namespace, outputs: Sequence[Path | None], inpu
         outputs: the files the command will write (None: not asked for).
         inputs: what each input is ("data file", ...) -> its path or ROBOT argument (or None).
     """
+    inputs = {**inputs, "kinematics YAML": getattr(args, "kinematics", None)}
     sources = {label: Path(str(p)) for label, p in inputs.items() if p is not None}
     sources = {label: p for label, p in sources.items() if p.is_file()}
     seen: list[Path] = []

@@ -7,7 +7,7 @@ import argparse
 from ..errors import DataError
 from ..robots import load_robot
 from ..urdf_writer import sidecar_path
-from .common import check_outputs, urdf_path
+from .common import check_outputs, robot_options, urdf_path
 
 
 def run(args: argparse.Namespace) -> int:
@@ -23,7 +23,7 @@ def run(args: argparse.Namespace) -> int:
     }
     check_outputs(args, [args.output], {**inputs, "input URDF": urdf_path(args.robot)})
     cal = load_calibration(args.calibration)
-    nominal = load_robot(args.robot, tip=cal.robot.tip, joints=cal.robot.joint_names)
+    nominal = load_robot(args.robot, tip=cal.robot.tip, joints=cal.robot.joint_names, **robot_options(args))
     program = read_program(args.program, nominal, args.degrees, args.units)
     result = compensate_program(nominal, cal, program, task=args.task)
     n = len(result.status)

@@ -9,6 +9,7 @@ from typing import Any, NoReturn
 
 from ..errors import PincalError
 from ..options import BUNDLED, LOSSES, MEASURES, MODELS, ORIENTATIONS, THRESHOLD, UNITS
+from .values import folds, mapping, name_list, parameters, payload, seed, vector3, vectors3, whole
 
 
 class _Parser(argparse.ArgumentParser):
@@ -18,55 +19,12 @@ class _Parser(argparse.ArgumentParser):
         raise PincalError(f"{message} (see '{self.prog} --help')")
 
 
-def _whole(text: str, minimum: int, what: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if value < minimum:
-        raise argparse.ArgumentTypeError(f"{what} is {minimum} or more, got {value}")
-    return value
-
-
-def _folds(text: str) -> int:
-    return _whole(text, 2, "the number of cross-validation folds")
-
-
-def _seed(text: str) -> int:
-    return _whole(text, 0, "a seed")
-
-
-def _payload(text: str) -> Any:
-    from ..effects import Payload  # here: --help does not load Pinocchio
-
-    return Payload.parse(text)
-
-
-def _vector3(text: str) -> Any:
-    import numpy as np  # here: --help does not load NumPy
-
-    try:
-        values = np.array([float(v) for v in text.split(",")])
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected X,Y,Z numbers, got {text!r}") from None
-    if values.shape != (3,) or not np.all(np.abs(values) < 1e6):
-        raise argparse.ArgumentTypeError(f"expected three finite numbers X,Y,Z (below 1e6), got {text!r}")
-    return values
-
-
-def _vectors3(text: str) -> Any:
-    """``X,Y,Z;X,Y,Z...`` -> (K, 3)."""
-    import numpy as np
-
-    return np.array([_vector3(item) for item in text.replace(" ", "").split(";") if item])
-
-
 def build_parser() -> argparse.ArgumentParser:
     """The ``pincal`` command line: one sub-command per task."""
     parser = _Parser(prog="pincal", description="Kinematic calibration of robot arms on Pinocchio.")
     parser.add_argument(
         "--threads",
-        type=lambda text: _whole(text, 0, "--threads"),
+        type=lambda text: whole(text, 0, "--threads"),
         default=None,
         help="BLAS threads (default: $PINCAL_THREADS, else 1; 0 leaves BLAS as it is)",
     )
@@ -82,17 +40,21 @@ def _add_calibrate(sub: Any) -> None:
     _add_data_options(cal)
     cal.add_argument("--test", type=Path, help="held-out poses (CSV) for the error after calibration")
     cal.add_argument("--holdout", type=float, help="fraction of the poses to hold out instead of --test")
-    cal.add_argument("--seed", type=_seed, default=0, help="seed of the --holdout split")
+    cal.add_argument("--seed", type=seed, default=0, help="seed of the --holdout split")
     cal.add_argument("--report", type=Path, help="write the JSON report here")
     cal.add_argument(
-        "-o", "--output", type=Path, help="write the corrected URDF here (and NAME.calibration.json)"
+        "-o",
+        "--output",
+        type=Path,
+        help="write the corrected URDF here (and NAME.calibration.json); a .yaml name writes a UR "
+        "kinematics YAML (ur_description's format) instead",
     )
     cal.add_argument(
         "--add-frame", metavar="NAME", help="with -o: add a fixed frame NAME at the calibrated tool"
     )
     cal.add_argument(
         "--params",
-        type=_params,
+        type=parameters,
         default="auto",
         metavar="auto|all|NAME,...|@FILE",
         help="model parameters to fit: 'auto' (default) chooses them by leave-one-out cross-validation "
@@ -106,7 +68,7 @@ def _add_calibrate(sub: Any) -> None:
         "and adds the cause it names, if its test passes; 'none' (default); or EFFECT:JOINT",
     )
     cal.add_argument(
-        "--folds", type=_folds, default=5, help="folds of --extend auto's and the nested cross-validation"
+        "--folds", type=folds, default=5, help="folds of --extend auto's and the nested cross-validation"
     )
     cal.add_argument(
         "--nested",
@@ -126,11 +88,11 @@ def _add_diagnose(sub: Any) -> None:
     _add_data_options(diag)
     diag.add_argument("--json", type=Path, help="write the diagnosis as JSON here")
     diag.add_argument("--plots", type=Path, metavar="DIR", help="write a PNG of the named cause here")
-    diag.add_argument("--folds", type=_folds, default=5, help="folds of the cross-validation (2 or more)")
-    diag.add_argument("--seed", type=_seed, default=0, help="seed of the folds")
+    diag.add_argument("--folds", type=folds, default=5, help="folds of the cross-validation (2 or more)")
+    diag.add_argument("--seed", type=seed, default=0, help="seed of the folds")
     diag.add_argument(
         "--params",
-        type=_params,
+        type=parameters,
         default="all",
         metavar="all|auto|NAME,...|@FILE",
         help="the geometric baseline's parameters: 'all' (default), 'auto' or names",
@@ -141,7 +103,7 @@ def _add_diagnose(sub: Any) -> None:
 def _add_demo(sub: Any) -> None:
     """``pincal demo``."""
     demo = sub.add_parser("demo", help="calibrate bundled data and print before/after tables")
-    demo.add_argument("--seed", type=_seed, default=0)
+    demo.add_argument("--seed", type=seed, default=0)
 
 
 def _add_tcp(sub: Any) -> None:
@@ -153,10 +115,11 @@ def _add_tcp(sub: Any) -> None:
     tcp.add_argument("--orientation", choices=ORIENTATIONS, default="default")
     tcp.add_argument("--units", choices=sorted(UNITS), default="m", help="unit of x,y,z and of the TCP")
     tcp.add_argument("--json", type=Path, help="write the result as JSON here")
-    tcp.add_argument("--columns", type=_mapping, help="column names of the file, e.g. x=X_mm,y=Y_mm,a=A_deg")
+    tcp.add_argument("--columns", type=mapping, help="column names of the file, e.g. x=X_mm,y=Y_mm,a=A_deg")
     tcp.add_argument("--robot", help="compute flange poses from joint columns with this robot (URDF or name)")
     tcp.add_argument("--tip", help="with --robot: the flange frame (default: the robot's tip)")
     tcp.add_argument("--degrees", action="store_true", help="with --robot: joint values in degrees")
+    _add_robot_options(tcp, "--robot")
     _add_force(tcp)
 
 
@@ -166,6 +129,7 @@ def _add_compensate(sub: Any) -> None:
         "compensate", help="joint commands that make the calibrated robot reach the program"
     )
     comp.add_argument("robot", help="the nominal robot the program was written for (URDF or bundled name)")
+    _add_robot_options(comp)
     comp.add_argument(
         "calibration", type=Path, help="the corrected URDF 'calibrate -o' wrote (sidecar beside)"
     )
@@ -182,7 +146,8 @@ def _add_compensate(sub: Any) -> None:
 def _add_plan(sub: Any) -> None:
     """``pincal plan``."""
     plan = sub.add_parser("plan", help="choose measurement poses for the accuracy of the calibrated robot")
-    plan.add_argument("robot", help=f"a .urdf path or a bundled robot ({', '.join(BUNDLED)})")
+    plan.add_argument("robot", help=f"a .urdf or .xacro path or a bundled robot ({', '.join(BUNDLED)})")
+    _add_robot_options(plan)
     plan.add_argument("--tip", help="the measured frame (default: the robot's documented tip)")
     plan.add_argument("--poses", type=int, required=True, help="number of poses to measure")
     plan.add_argument("--model", choices=MODELS, default="placements")
@@ -190,7 +155,7 @@ def _add_plan(sub: Any) -> None:
     plan.add_argument(
         "--candidates", type=int, default=1000, help="random feasible candidates to choose from"
     )
-    plan.add_argument("--seed", type=_seed, default=0)
+    plan.add_argument("--seed", type=seed, default=0)
     plan.add_argument("--units", choices=sorted(UNITS), default="m", help="unit of lengths given below")
     plan.add_argument(
         "--criterion", choices=("i", "d"), default="i",
@@ -200,19 +165,19 @@ def _add_plan(sub: Any) -> None:
     plan.add_argument(
         "--task", type=Path, help="CSV of the poses the robot will work in (default: its whole workspace)"
     )
-    plan.add_argument("--tool-point", type=_vector3, help="the measured point on the tip, X,Y,Z, roughly")
+    plan.add_argument("--tool-point", type=vector3, help="the measured point on the tip, X,Y,Z, roughly")
     plan.add_argument(
         "--tool-tolerance", type=float,
         help="how far the real point may be from --tool-point [units] (default 0.01 m; 0.1 m from the tip)",
     )
     plan.add_argument(
-        "--sockets", type=_vectors3, help="with --measure points: where the sockets are, X,Y,Z;X,Y,Z [units]"
+        "--sockets", type=vectors3, help="with --measure points: where the sockets are, X,Y,Z;X,Y,Z [units]"
     )
     plan.add_argument(
         "--point-distance", metavar="A,B=D[;...]", help="with --sockets: known distances between them [units]"
     )
     plan.add_argument("--clearance", type=float, default=0.05, help="height above the floor z = 0 [m]")
-    plan.add_argument("--instrument", type=_vector3, help="instrument position X,Y,Z in the base frame")
+    plan.add_argument("--instrument", type=vector3, help="instrument position X,Y,Z in the base frame")
     plan.add_argument("--reach", type=float, help="with --instrument: its range [units]")
     plan.add_argument("--extend", metavar="EFFECT:JOINT", help="plan for a non-geometric effect too")
     plan.add_argument("--degrees", action="store_true", help="write revolute joint values in degrees")
@@ -225,25 +190,31 @@ def _add_twists(sub: Any) -> None:
     tw = sub.add_parser("twists", help="print the chain's nominal joint twists, checked against Pinocchio")
     tw.add_argument("robot")
     tw.add_argument("--tip")
+    _add_robot_options(tw)
 
 
-def _params(text: str) -> str | tuple[str, ...]:
-    """``auto``, ``all``, ``NAME,NAME,...`` or ``@FILE`` (names one a line or comma separated;
-    ``#`` starts a comment)."""
-    if text in ("auto", "all"):
-        return text
-    if text.startswith("@"):
-        path = Path(text[1:])
-        try:
-            lines = path.read_text().splitlines()
-        except (OSError, UnicodeDecodeError) as exc:
-            raise argparse.ArgumentTypeError(f"cannot read the parameter list {path}: {exc}") from None
-        names = _names(",".join(line.split("#", 1)[0] for line in lines))
-    else:
-        names = _names(text)
-    if not names:
-        raise argparse.ArgumentTypeError(f"expected auto, all, names or @FILE, got {text!r}")
-    return names
+def _add_robot_options(cmd: argparse.ArgumentParser, flag: str = "ROBOT") -> None:
+    """How ROBOT is read: a xacro's arguments and packages, a UR kinematics YAML on top."""
+    cmd.add_argument(
+        "--xacro-arg",
+        action="append",
+        default=[],
+        metavar="NAME:=VALUE",
+        help=f"an argument of a .xacro {flag} (repeatable)",
+    )
+    cmd.add_argument(
+        "--package-path",
+        action="append",
+        default=[],
+        metavar="PKG=DIR",
+        help="the folder $(find PKG) means in a xacro (repeatable; else ROS_PACKAGE_PATH is searched)",
+    )
+    cmd.add_argument(
+        "--kinematics",
+        type=Path,
+        metavar="FILE.yaml",
+        help=f"a UR kinematics YAML (ur_description's format) applied on the UR {flag}",
+    )
 
 
 def _add_force(cmd: argparse.ArgumentParser) -> None:
@@ -251,7 +222,8 @@ def _add_force(cmd: argparse.ArgumentParser) -> None:
 
 
 def _add_data_options(cmd: argparse.ArgumentParser) -> None:
-    cmd.add_argument("robot", help=f"a .urdf path or a bundled robot ({', '.join(BUNDLED)})")
+    cmd.add_argument("robot", help=f"a .urdf or .xacro path or a bundled robot ({', '.join(BUNDLED)})")
+    _add_robot_options(cmd)
     cmd.add_argument(
         "data", type=Path, help="measurement CSV (see contracts.md), or a folder of hole_<name>.csv files"
     )
@@ -277,10 +249,10 @@ def _add_data_options(cmd: argparse.ArgumentParser) -> None:
         help="'base': the data is already in the robot's base frame",
     )
     cmd.add_argument(
-        "--tool-point", type=_vector3, help="the measured point on the tip frame, X,Y,Z (data units)"
+        "--tool-point", type=vector3, help="the measured point on the tip frame, X,Y,Z (data units)"
     )
     cmd.add_argument(
-        "--payload", type=_payload, metavar="MASS,X,Y,Z", help="load on the tip [kg; m in the tip frame]"
+        "--payload", type=payload, metavar="MASS,X,Y,Z", help="load on the tip [kg; m in the tip frame]"
     )
     cmd.add_argument("--loss", choices=LOSSES, default="linear", help="robust loss for outliers")
     cmd.add_argument(
@@ -292,7 +264,7 @@ def _add_data_options(cmd: argparse.ArgumentParser) -> None:
         f"(default {THRESHOLD:g}; 0 keeps every pose)",
     )
     cmd.add_argument(
-        "--lock", type=_names, default=(), metavar="JOINT,...", help="chain joints to hold at neutral"
+        "--lock", type=name_list, default=(), metavar="JOINT,...", help="chain joints to hold at neutral"
     )
     cmd.add_argument(
         "--partial", action="store_true", help="fit only what the data identifies when it is not all"
@@ -303,20 +275,6 @@ def _add_data_options(cmd: argparse.ArgumentParser) -> None:
         default=0.1,
         help="weight of orientation residuals for pose data [m/rad] (default 0.1: 1 mrad ~ 0.1 mm)",
     )
-
-
-def _names(text: str) -> tuple[str, ...]:
-    return tuple(n.strip() for n in text.split(",") if n.strip())
-
-
-def _mapping(text: str) -> dict[str, str]:
-    try:
-        pairs = [item.split("=", 1) for item in text.split(",")]
-        return {k.strip(): v.strip() for k, v in pairs}
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"expected NAME=COLUMN pairs separated by commas, got {text!r}"
-        ) from None
 
 
 def attach_vectors(argv: Sequence[str]) -> list[str]:

@@ -11,7 +11,7 @@ import numpy as np
 from ..data import UNITS, joint_values, read_table
 from ..errors import DataError
 from ..robots import Robot, load_robot
-from .common import check_outputs, urdf_path
+from .common import check_outputs, robot_options, urdf_path
 
 
 def run(args: argparse.Namespace) -> int:
@@ -24,7 +24,7 @@ def run(args: argparse.Namespace) -> int:
         raise DataError("--reach needs --instrument X,Y,Z (where the instrument stands)")
     if (args.sockets is not None) != (args.measure == "points"):
         raise DataError("--sockets X,Y,Z;X,Y,Z and --measure points go together: where the ball is held")
-    robot = load_robot(args.robot, tip=args.tip)
+    robot = load_robot(args.robot, tip=args.tip, **robot_options(args))
     scale = UNITS[args.units]
 
     def length(value: Any) -> Any:

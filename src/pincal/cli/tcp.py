@@ -11,13 +11,13 @@ import numpy as np
 from ..data import UNITS, atomic_write
 from ..robots import load_robot
 from ..tool import calibrate_tool, read_flange_poses
-from .common import check_outputs, urdf_path
+from .common import check_outputs, robot_options, urdf_path
 
 
 def run(args: argparse.Namespace) -> int:
     """Run the command; 0 on success."""
     check_outputs(args, [args.json], {"poses file": args.poses, "input URDF": urdf_path(args.robot)})
-    robot = load_robot(args.robot, tip=args.tip) if args.robot else None
+    robot = load_robot(args.robot, tip=args.tip, **robot_options(args)) if args.robot else None
     rotations, positions = read_flange_poses(args.poses, args.units, args.columns, robot, args.degrees)
     tool = calibrate_tool(rotations, positions, args.orientation, scale=1.0 / UNITS[args.units])
     u = args.units

@@ -8,13 +8,14 @@ import numpy as np
 import pinocchio as pin
 
 from ..robots import load_robot
+from .common import robot_options
 
 
 def run(args: argparse.Namespace) -> int:
     """Run the command; 0 on success."""
     from ..twists import nominal_twists, poe_forward
 
-    robot = load_robot(args.robot, tip=args.tip)
+    robot = load_robot(args.robot, tip=args.tip, **robot_options(args))
     tw = nominal_twists(robot)
     print(f"{robot.name}: {robot.n_joints} joints from the base to {robot.tip}; twists (ω, v [m]) at q = 0")
     for name, xi in zip(robot.joint_names, tw.twists):

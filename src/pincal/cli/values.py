@@ -1,0 +1,85 @@
+"""Value types of the ``pincal`` command line's options: each parses one option's text or
+raises :class:`argparse.ArgumentTypeError` with what was expected."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+
+def whole(text: str, minimum: int, what: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if value < minimum:
+        raise argparse.ArgumentTypeError(f"{what} is {minimum} or more, got {value}")
+    return value
+
+
+def folds(text: str) -> int:
+    return whole(text, 2, "the number of cross-validation folds")
+
+
+def seed(text: str) -> int:
+    return whole(text, 0, "a seed")
+
+
+def payload(text: str) -> Any:
+    from ..effects import Payload  # here: --help does not load Pinocchio
+
+    return Payload.parse(text)
+
+
+def vector3(text: str) -> Any:
+    import numpy as np  # here: --help does not load NumPy
+
+    try:
+        values = np.array([float(v) for v in text.split(",")])
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected X,Y,Z numbers, got {text!r}") from None
+    if values.shape != (3,) or not np.all(np.abs(values) < 1e6):
+        raise argparse.ArgumentTypeError(f"expected three finite numbers X,Y,Z (below 1e6), got {text!r}")
+    return values
+
+
+def vectors3(text: str) -> Any:
+    """``X,Y,Z;X,Y,Z...`` -> (K, 3)."""
+    import numpy as np
+
+    return np.array([vector3(item) for item in text.replace(" ", "").split(";") if item])
+
+
+def parameters(text: str) -> str | tuple[str, ...]:
+    """``auto``, ``all``, ``NAME,NAME,...`` or ``@FILE`` (names one a line or comma separated;
+    ``#`` starts a comment)."""
+    if text in ("auto", "all"):
+        return text
+    if text.startswith("@"):
+        path = Path(text[1:])
+        try:
+            lines = path.read_text().splitlines()
+        except (OSError, UnicodeDecodeError) as exc:
+            raise argparse.ArgumentTypeError(f"cannot read the parameter list {path}: {exc}") from None
+        names = name_list(",".join(line.split("#", 1)[0] for line in lines))
+    else:
+        names = name_list(text)
+    if not names:
+        raise argparse.ArgumentTypeError(f"expected auto, all, names or @FILE, got {text!r}")
+    return names
+
+
+def name_list(text: str) -> tuple[str, ...]:
+    return tuple(n.strip() for n in text.split(",") if n.strip())
+
+
+def mapping(text: str) -> dict[str, str]:
+    try:
+        pairs = [item.split("=", 1) for item in text.split(",")]
+        return {k.strip(): v.strip() for k, v in pairs}
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected NAME=COLUMN pairs separated by commas, got {text!r}"
+        ) from None
+

@@ -1,0 +1,270 @@
+"""Robot descriptions as users hold them: a URDF, a xacro, and a UR kinematics YAML on top.
+
+A ``.xacro`` is processed with the ``xacro`` package from PyPI (no ROS install): ``--xacro-arg
+NAME:=VALUE`` sets its ``<xacro:arg>`` values, and ``$(find PKG)`` resolves, in this order, to a
+folder given as ``--package-path PKG=DIR``, then to a package found on ``ROS_PACKAGE_PATH`` (a
+folder named PKG, or holding a ``package.xml`` that names PKG, up to three levels below each
+entry), then to ``share/PKG`` of an ``AMENT_PREFIX_PATH`` prefix. The URDF text a xacro gives is
+checked like any URDF (:func:`pincal.robots.read_urdf_text`). A UR kinematics YAML, if given, is
+applied on top of the result (:mod:`pincal.ur_frames`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import re
+import threading
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from .errors import RobotError
+
+if TYPE_CHECKING:
+    from .ur_yaml import URKinematics
+
+#: Suffixes of the robot files ``load_robot`` reads (a ``.urdf.xacro`` ends in ``.xacro``).
+URDF_SUFFIXES = (".urdf", ".xacro")
+_XACRO_LOCK = threading.Lock()  # xacro keeps its state in module globals
+_SEARCH_DEPTH = 3  # [folders] below each ROS_PACKAGE_PATH entry
+_DOCTYPE = re.compile(r"<!DOCTYPE", re.IGNORECASE)
+_DECLARATION = re.compile(r"<!(ENTITY|ELEMENT|ATTLIST)|\b(SYSTEM|PUBLIC)\b")
+
+
+class PackageNotFoundError(RobotError):
+    """A xacro's ``$(find PKG)`` names a package no ``--package-path`` or search path holds.
+
+    Attributes:
+        package: the package's name.
+    """
+
+    def __init__(self, package: str, where: str = "the xacro") -> None:
+        super().__init__(
+            f"{where} needs ROS package {package!r} ($(find {package})), which is not found: give "
+            f"--package-path {package}=DIR (the folder holding its package.xml), or set ROS_PACKAGE_PATH"
+        )
+        self.package = package
+
+
+def is_xacro(path: str | Path) -> bool:
+    """True for a ``.xacro`` file (``robot.urdf.xacro`` included)."""
+    return Path(path).suffix.lower() == ".xacro"
+
+
+def check_urdf_text(text: str, path: Path) -> str:
+    """``text`` (from ``path``), refused if it has a DOCTYPE with declarations (which could make an XML parser
+    read other files or expand entities without bound)."""
+    # Declarations anywhere count: a comment may hide the end of the DOCTYPE.
+    if _DOCTYPE.search(text) is not None and _DECLARATION.search(text):
+        raise RobotError(
+            f"URDF {path} has a DOCTYPE that declares entities or an external DTD, which could "
+            "read other files: remove the <!DOCTYPE ...> block (a URDF needs none)"
+        )
+    return text
+
+
+def parse_xacro_args(items: list[str] | tuple[str, ...] | None) -> dict[str, str]:
+    """``NAME:=VALUE`` strings (as ``xacro`` takes them) as a mapping.
+
+    Raises:
+        RobotError: an item without ``:=`` or with an empty name.
+    """
+    out: dict[str, str] = {}
+    for item in items or ():
+        name, sep, value = item.partition(":=")
+        if not sep or not name.strip():
+            raise RobotError(f"--xacro-arg {item!r}: expected NAME:=VALUE (for example ur_type:=ur5e)")
+        out[name.strip()] = value
+    return out
+
+
+def parse_package_paths(items: list[str] | tuple[str, ...] | None) -> dict[str, Path]:
+    """``PKG=DIR`` strings as a mapping, each DIR an existing folder.
+
+    Raises:
+        RobotError: an item without ``=``, or a DIR that is not a folder.
+    """
+    out: dict[str, Path] = {}
+    for item in items or ():
+        name, sep, folder = item.partition("=")
+        if not sep or not name.strip() or not folder.strip():
+            raise RobotError(f"--package-path {item!r}: expected PKG=DIR (for example ur_description=src/ur)")
+        path = Path(folder.strip()).expanduser()
+        if not path.is_dir():
+            raise RobotError(f"--package-path {item!r}: {path} is not a folder")
+        out[name.strip()] = path.resolve()
+    return out
+
+
+def find_package(name: str, package_paths: Mapping[str, Path] | None = None) -> Path:
+    """The folder of ROS package ``name`` (see the module's docstring for the search order).
+
+    Raises:
+        PackageNotFoundError: no folder found; the message names the package and what to give.
+    """
+    given = (package_paths or {}).get(name)
+    if given is not None:
+        return Path(given).resolve()  # xacro takes a relative path as relative to the includer
+    for entry in os.environ.get("ROS_PACKAGE_PATH", "").split(os.pathsep):
+        found = _search(Path(entry).resolve(), name, _SEARCH_DEPTH) if entry else None
+        if found is not None:
+            return found
+    for prefix in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep):
+        if prefix and (Path(prefix) / "share" / name).is_dir():
+            return (Path(prefix) / "share" / name).resolve()
+    raise PackageNotFoundError(name)
+
+
+def _search(folder: Path, name: str, depth: int) -> Path | None:
+    """``folder`` or a folder below it (to ``depth`` levels) that is package ``name``."""
+    if not folder.is_dir():
+        return None
+    if folder.name == name or _package_name(folder) == name:
+        return folder
+    if (folder / name).is_dir():
+        return folder / name
+    if depth == 0 or (folder / "package.xml").is_file():  # a package holds no other package
+        return None
+    with contextlib.suppress(OSError):
+        for sub in sorted(folder.iterdir()):
+            if sub.is_dir() and not sub.name.startswith("."):
+                found = _search(sub, name, depth - 1)
+                if found is not None:
+                    return found
+    return None
+
+
+def _package_name(folder: Path) -> str | None:
+    """The ``<name>`` of ``folder/package.xml``, or None."""
+    manifest = folder / "package.xml"
+    if not manifest.is_file():
+        return None
+    from lxml import etree
+
+    try:
+        root = etree.parse(str(manifest), etree.XMLParser(resolve_entities=False, no_network=True)).getroot()
+    except (OSError, etree.XMLSyntaxError):
+        return None
+    found = root.findtext("name")
+    return found.strip() if found else None
+
+
+@contextlib.contextmanager
+def _resolving(package_paths: Mapping[str, Path] | None) -> Iterator[None]:
+    """xacro's ``$(find)`` and ``find()`` answered by :func:`find_package` (ROS's ament index
+    is not needed), for the time of one processing."""
+    from xacro import substitution_args
+
+    def find(name: str) -> str:
+        return str(find_package(name, package_paths))
+
+    saved = substitution_args._eval_find, substitution_args._eval_dict.get("find")
+    substitution_args._eval_find = find
+    substitution_args._eval_dict["find"] = find
+    try:
+        yield
+    finally:
+        substitution_args._eval_find = saved[0]
+        substitution_args._eval_dict["find"] = saved[1]
+
+
+def _cause(exc: BaseException) -> BaseException | None:
+    """A :class:`RobotError` xacro wrapped (in its ``exc`` attribute or as a cause), or None."""
+    seen: set[int] = set()
+    todo: list[BaseException | None] = [exc]
+    while todo:
+        item = todo.pop()
+        if item is None or id(item) in seen:
+            continue
+        if isinstance(item, RobotError):
+            return item
+        seen.add(id(item))
+        wrapped = getattr(item, "exc", None)
+        todo += [wrapped if isinstance(wrapped, BaseException) else None, item.__cause__, item.__context__]
+    return None
+
+
+def xacro_to_urdf(
+    path: str | Path,
+    xacro_args: Mapping[str, str] | None = None,
+    package_paths: Mapping[str, Path] | None = None,
+) -> str:
+    """The URDF text a xacro file gives, as ``xacro FILE NAME:=VALUE ...`` would print it.
+
+    Args:
+        path: the ``.xacro`` file.
+        xacro_args: values of its ``<xacro:arg>`` (NAME -> VALUE, as on xacro's command line).
+        package_paths: package name -> folder, for ``$(find PKG)``.
+
+    Raises:
+        PackageNotFoundError: a ``$(find PKG)`` no folder answers.
+        RobotError: the xacro package is missing, or xacro refused the file.
+    """
+    try:
+        import xacro
+    except ImportError:
+        raise RobotError(f"{path} is a xacro: install the xacro package (pip install xacro)") from None
+    path = Path(path).resolve()
+    with _XACRO_LOCK, _resolving(package_paths):
+        xacro.all_includes = []
+        try:
+            doc = xacro.process_file(str(path), mappings=dict(xacro_args or {}), verbosity=0)
+        except Exception as exc:  # xacro raises many kinds of error for a broken file
+            cause = _cause(exc)
+            if isinstance(cause, PackageNotFoundError):
+                raise PackageNotFoundError(cause.package, path.name) from None
+            if cause is not None:
+                raise cause from None
+            raise RobotError(f"cannot process xacro {path}: {' '.join(str(exc).split())}") from None
+        finally:
+            xacro.init_stacks(None)
+        declared = _declared_args([path, *(Path(f) for f in xacro.all_includes)])
+    unknown = sorted(set(xacro_args or {}) - declared)
+    if unknown:
+        have = ", ".join(sorted(declared)) or "none"
+        raise RobotError(f"--xacro-arg {unknown[0]}: {path.name} declares no such argument (it has: {have})")
+    return str(doc.toprettyxml(indent="  "))
+
+
+_ARG = re.compile(r"<\s*[\w.-]+:arg\b[^>]*?\bname\s*=\s*[\"']([^\"']+)[\"']")
+
+
+def _declared_args(files: list[Path]) -> set[str]:
+    """Names of the ``<xacro:arg>`` the files declare."""
+    names: set[str] = set()
+    for file in files:
+        with contextlib.suppress(OSError, UnicodeDecodeError):
+            names.update(_ARG.findall(file.read_text(encoding="utf-8")))
+    return names
+
+
+def robot_description(
+    path: Path,
+    xacro_args: Mapping[str, str] | None = None,
+    package_paths: Mapping[str, Path] | None = None,
+    kinematics: str | Path | URKinematics | None = None,
+) -> str:
+    """The URDF text of a robot file: a URDF as written, or a xacro processed; then, if
+    ``kinematics`` is given, a UR kinematics YAML applied on top
+    (:func:`pincal.ur_frames.apply_ur_kinematics`).
+
+    Raises:
+        RobotError: the file cannot be read or processed, or options that need a xacro without one.
+    """
+    from .robots import read_urdf_text
+
+    if is_xacro(path):
+        read_urdf_text(path)  # the same checks on the xacro's own text
+        text = check_urdf_text(xacro_to_urdf(path, xacro_args, package_paths), path)
+    elif xacro_args:
+        raise RobotError(f"--xacro-arg is for a .xacro robot file, and {path.name} is not one")
+    else:
+        text = read_urdf_text(path)
+    if kinematics is not None:
+        from .ur_frames import apply_ur_kinematics
+        from .ur_yaml import URKinematics, read_ur_kinematics
+
+        given = kinematics if isinstance(kinematics, URKinematics) else read_ur_kinematics(kinematics)
+        text = apply_ur_kinematics(text, given)
+    return text
