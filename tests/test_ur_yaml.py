@@ -159,7 +159,7 @@ def pincal_q(model: pin.Model, q: np.ndarray) -> np.ndarray:
     return out
 
 
-@pytest.mark.parametrize("model", ["placements", "poe", "offsets"])
+@pytest.mark.parametrize("model", ["placements", "poe", "mdh", "offsets"])
 def test_written_yaml_is_the_calibration(files: dict[str, Path], tmp_path: Path, model: str) -> None:
     """Calibrate on the factory YAML, write the YAML: ur_description's construction from it is the
     calibrated chain to 1e-9 m (and 1e-9 rad); it keeps the source's hash; the held-out error drops."""

@@ -6,7 +6,9 @@ What is checked:
 - minimal diff: only the ``xyz``/``rpy`` of the chain joints' ``<origin>`` change (plus, with
   ``--add-frame``, one fixed joint and one link); comments, axes and everything else are kept,
   and joint offsets go into ``rpy``, never into ``<calibration>``;
-- the file loads in Pinocchio and in yourdfpy (without meshes), and both agree;
+- the file loads in Pinocchio and in yourdfpy (without meshes), and both agree; urdfdom's own
+  ``check_urdf`` accepts it (skipped where it is not installed; ``conftest.py`` also runs it on
+  every corrected URDF any test writes);
 - the command writes byte-identical files when run twice, and a sidecar with the registration;
 - the URDF plus its sidecar alone predict held-out measurements at the noise floor;
 - ``-o`` naming the input URDF, or a folder that does not exist, is refused and writes nothing.
@@ -580,3 +582,42 @@ def test_added_frame_carries_tool_orientation(
         placement = registration * exported.frame_placement(q)
         assert np.abs(placement.translation - position).max() <= TOL
         assert _rotation_error(placement.rotation, rotation) <= TOL
+
+
+# 8. urdfdom's own parser --------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("model", pincal.MODELS)
+@pytest.mark.parametrize("name", (*ROUND_TRIP_ROBOTS, "zu3"))
+def test_check_urdf_accepts_corrected_urdf(
+    check_urdf: Callable[[bytes | Path], None],
+    get_calibration: GetCalibration,
+    tmp_path: Path,
+    name: str,
+    model: str,
+) -> None:
+    """``check_urdf`` (urdfdom, as ROS tools parse URDFs) accepts the file, with ``--add-frame``.
+
+    Args:
+        check_urdf: asserts that urdfdom accepts a URDF (skips when it is not installed).
+        get_calibration: the module calibration cache.
+        tmp_path: a fresh folder.
+        name: the bundled robot.
+        model: the calibration model.
+    """
+    path, _ = write_corrected_urdf(get_calibration(name, model), tmp_path / "out.urdf", add_frame=FRAME)
+    check_urdf(path)
+
+
+def test_check_urdf_rejects_what_urdfdom_cannot_parse(check_urdf: Callable[[bytes | Path], None]) -> None:
+    """The check is not vacuous: a revolute joint without ``<limit>`` is refused by urdfdom.
+
+    Args:
+        check_urdf: asserts that urdfdom accepts a URDF (skips when it is not installed).
+    """
+    text = (
+        b'<robot name="r"><link name="a"/><link name="b"/><joint name="j" type="revolute">'
+        b'<parent link="a"/><child link="b"/></joint></robot>'
+    )
+    with pytest.raises(AssertionError, match="check_urdf"):
+        check_urdf(text)

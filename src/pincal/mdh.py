@@ -5,12 +5,15 @@ Frames ``F_j`` have z along joint ``j``'s axis and x along the common normal to 
 
     F_j = F_{j-1} · Rx(α_j) · Tx(a_j) · Ry(β_j) · Rz(θ_j + q_j) · Tz(d_j)
 
-(``q_j`` enters ``d_j`` instead for a prismatic joint). Hayati's β (nominally 0) is used where
-consecutive axes are parallel or nearly so (within :data:`PARALLEL_TOL`), where the common
-normal is ill-defined and DH alone is not continuous; elsewhere it is held at zero. The first
-frame ``F_0`` sits on joint 0's axis; a 6-DoF ``base`` correction (a twist, like ``placements``)
-places it, and the tip is a constant transform from ``F_{n-1}``. Parameters are errors added to
-the nominal a [m], α [rad], d [m], θ [rad], β [rad].
+(``q_j`` enters ``d_j`` instead for a prismatic joint). Hayati's β is used where consecutive
+axes are parallel or nearly so (within :data:`PARALLEL_TOL`), where the common normal is
+ill-defined or far away and DH alone is not continuous; elsewhere it is held at zero. There the
+x axis points to where the next axis crosses the plane normal to this one, and α with a nominal
+β tilts z onto the next axis: β is 0 for exactly parallel axes and a few mrad for a URDF that
+was calibrated before (instead of a common normal half a metre away), so every chain converts
+exactly. The first frame ``F_0`` sits on joint 0's axis; a 6-DoF ``base`` correction (a
+twist, like ``placements``) places it, and the tip is a constant transform from ``F_{n-1}``.
+Parameters are errors added to the nominal a [m], α [rad], d [m], θ [rad], β [rad].
 """
 
 from __future__ import annotations
@@ -40,8 +43,9 @@ class MdhTable(NamedTuple):
     """Nominal modified DH description of a chain.
 
     Attributes:
-        a, alpha, d, theta: (n,) nominal parameters [m, rad, m, rad]; row ``j`` maps ``F_{j-1}`` to
-            ``F_j`` (row 0 is zero: ``F_0`` is the base frame of the DH chain).
+        a, alpha, d, theta, beta: (n,) nominal parameters [m, rad, m, rad, rad]; row ``j`` maps
+            ``F_{j-1}`` to ``F_j`` (row 0 is zero: ``F_0`` is the base frame of the DH chain);
+            β is non-zero only where the axes are nearly, not exactly, parallel.
         parallel: (n,) whether axis ``j`` is (nearly) parallel to axis ``j-1`` (row 0: True).
         base: ``base_T_F0``.
         tool: ``F_{n-1}_T_tip``.
@@ -51,6 +55,7 @@ class MdhTable(NamedTuple):
     alpha: np.ndarray
     d: np.ndarray
     theta: np.ndarray
+    beta: np.ndarray
     parallel: np.ndarray
     base: pin.SE3
     tool: pin.SE3
@@ -69,8 +74,32 @@ def _perpendicular(z: np.ndarray, hint: np.ndarray) -> np.ndarray:
     raise AssertionError("unreachable")  # pragma: no cover
 
 
+def _nearly_parallel(z: np.ndarray, z_next: np.ndarray) -> bool:
+    """Whether two unit axis directions are within :data:`PARALLEL_TOL` of (anti)parallel."""
+    return bool(np.linalg.norm(np.cross(z, z_next)) < np.sin(PARALLEL_TOL))
+
+
+def _common_normal(
+    origin: np.ndarray, z: np.ndarray, p_next: np.ndarray, z_next: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The common normal's feet on axis ``(origin, z)`` and on axis ``(p_next, z_next)``, for
+    axes that are not (nearly) parallel."""
+    w = origin - p_next
+    b, dd, ee = z @ z_next, z @ w, z_next @ w
+    denom = 1.0 - b * b
+    return origin + ((b * ee - dd) / denom) * z, p_next + ((ee - b * dd) / denom) * z_next
+
+
 def mdh_table(chain: Chain) -> MdhTable:
-    """Convert a chain (URDF joint origins and axes) to modified DH with Hayati's β."""
+    """Convert a chain (URDF joint origins and axes) to modified DH with Hayati's β.
+
+    Where consecutive axes are skew or intersecting, frame ``j``'s x runs along their common
+    normal (β = 0). Where they are parallel or nearly so (:data:`PARALLEL_TOL`), the common normal
+    is far away or undefined: frame ``j`` keeps its origin, x points to where the next axis crosses
+    the plane normal to axis ``j`` through that origin, and α and a nominal β tilt z onto the next
+    axis (Hayati). The table reproduces the chain exactly either way, so a URDF calibrated once
+    (axes parallel to a few mrad, not exactly) converts like the nominal one.
+    """
     tw = chain_twists(chain)
     n = len(tw.joint_frames)
     points = [g.translation for g in tw.joint_frames]
@@ -80,46 +109,42 @@ def mdh_table(chain: Chain) -> MdhTable:
     origins, xs = [], []
     origin = points[0]
     x_prev = _perpendicular(dirs[0], np.array([1.0, 0, 0]))
+    parallel = np.ones(n, dtype=bool)
     for j in range(n):
         z = dirs[j]
+        foot = origin
         if j < n - 1:
             z_next, p_next = dirs[j + 1], points[j + 1]
-            cross = np.cross(z, z_next)
-            if np.linalg.norm(cross) > 1e-9:  # skew or intersecting: unique common normal
-                w = origin - p_next
-                b, dd, ee = z @ z_next, z @ w, z_next @ w
-                denom = 1.0 - b * b
-                s = (b * ee - dd) / denom
-                origin = origin + s * z
-                foot = p_next + ((ee - b * dd) / denom) * z_next
+            parallel[j + 1] = _nearly_parallel(z, z_next)
+            if not parallel[j + 1]:  # skew or intersecting: unique common normal
+                origin, foot = _common_normal(origin, z, p_next, z_next)
                 gap = foot - origin
-                x = _unit(gap) if np.linalg.norm(gap) > 1e-9 else _unit(cross)
-            else:  # parallel: keep the origin (d = 0 on the previous normal)
-                gap = p_next - origin
-                gap = gap - (gap @ z) * z
+                x = _unit(gap) if np.linalg.norm(gap) > 1e-9 else _unit(np.cross(z, z_next))
+            else:  # (nearly) parallel: keep the origin, go to the next axis in the normal plane
+                foot = p_next - (((p_next - origin) @ z) / (z_next @ z)) * z_next
+                gap = foot - origin
+                gap = gap - (gap @ z) * z  # zero already, up to rounding
                 x = _unit(gap) if np.linalg.norm(gap) > 1e-9 else _perpendicular(z, x_prev)
         else:
             x = _perpendicular(z, x_prev)
         origins.append(origin)
         xs.append(x)
         x_prev = x
-        if j < n - 1:  # the next frame's origin starts at the foot on the next axis
-            nxt = points[j + 1]
-            origin = nxt + ((origin - nxt) @ dirs[j + 1]) * dirs[j + 1]
+        origin = foot  # the next frame's origin starts at the foot on the next axis
     frames = [pin.SE3(np.column_stack([x, np.cross(z, x), z]), o) for x, z, o in zip(xs, dirs, origins)]
-    a, alpha, d, theta = (np.zeros(n) for _ in range(4))
-    parallel = np.ones(n, dtype=bool)
+    a, alpha, d, theta, beta = (np.zeros(n) for _ in range(5))
     for j in range(1, n):
         rel = frames[j - 1].actInv(frames[j])
-        z_rel = rel.rotation[:, 2]
+        z_rel = rel.rotation[:, 2]  # (sin β, -sin α cos β, cos α cos β)
         alpha[j] = np.arctan2(-z_rel[1], z_rel[2])
-        parallel[j] = abs(np.sin(alpha[j])) < np.sin(PARALLEL_TOL)
-        a[j] = rel.translation[0]
-        rest = _rx(alpha[j]) * _tx(a[j])
-        rest = rest.actInv(rel)  # Rz(θ) Tz(d)
+        if parallel[j]:
+            beta[j] = np.arctan2(z_rel[0], np.hypot(z_rel[1], z_rel[2]))
+        u = _rx(alpha[j]).actInv(rel).translation  # (a + d sin β, 0, d cos β)
+        a[j] = u[0] - u[2] * np.tan(beta[j])
+        rest = (_rx(alpha[j]) * _tx(a[j]) * _ry(beta[j])).actInv(rel)  # Rz(θ) Tz(d)
         theta[j] = np.arctan2(rest.rotation[1, 0], rest.rotation[0, 0])
         d[j] = rest.translation[2]
-    return MdhTable(a, alpha, d, theta, parallel, frames[0], frames[-1].actInv(tw.home))
+    return MdhTable(a, alpha, d, theta, beta, parallel, frames[0], frames[-1].actInv(tw.home))
 
 
 def _rx(angle: float) -> pin.SE3:
@@ -177,7 +202,7 @@ class MdhModel(Model):
                 dh = [
                     _rx(t.alpha[j] + p[j, 1]),
                     _tx(t.a[j] + p[j, 0]),
-                    _ry(p[j, 4]),
+                    _ry(t.beta[j] + p[j, 4]),
                     _rz(t.theta[j] + p[j, 3]),
                 ]
             else:

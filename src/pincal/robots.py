@@ -26,10 +26,11 @@ import pinocchio as pin
 
 from .descriptions import URDF_SUFFIXES, check_urdf_text, robot_description
 from .errors import RobotError
+from .joint_kinds import actuated_joints, joint_path, mimic_joints, reference_configuration
+from .options import BUNDLED
 
 if TYPE_CHECKING:
     from .ur_yaml import URKinematics
-from .options import BUNDLED
 
 _FRAME_PREFERENCE = (pin.FrameType.BODY, pin.FrameType.FIXED_JOINT, pin.FrameType.OP_FRAME)
 
@@ -183,17 +184,8 @@ def read_urdf_text(path: Path) -> str:
 def _deepest_body(model: pin.Model) -> str:
     """The body frame with the most joints between the base and it (the last such, on ties)."""
     bodies = [f for f in model.frames if f.type == pin.FrameType.BODY]
-    best = max(len(_joint_path(model, f.parentJoint)) for f in bodies)
-    return next(f.name for f in reversed(bodies) if len(_joint_path(model, f.parentJoint)) == best)
-
-
-def _joint_path(model: pin.Model, joint: int) -> list[int]:
-    """Ids of the joints from the base to ``joint`` (included), base first."""
-    path: list[int] = []
-    while joint > 0:
-        path.append(joint)
-        joint = model.parents[joint]
-    return path[::-1]
+    best = max(len(joint_path(model, f.parentJoint)) for f in bodies)
+    return next(f.name for f in reversed(bodies) if len(joint_path(model, f.parentJoint)) == best)
 
 
 @contextlib.contextmanager
@@ -260,7 +252,7 @@ def load_robot(
         if not path.is_file():
             raise RobotError(f"URDF file not found: {path}")
     text = robot_description(path, xacro_args, package_paths, kinematics)
-    full = _parse_urdf(path, text)
+    full, mimic = _parse_urdf(path, text)
     if tip is None:
         tip = _deepest_body(full)
     tip_id = _find_frame(full, tip)
@@ -268,13 +260,8 @@ def load_robot(
         raise RobotError(
             f"frame {tip!r} has no joint between the base and it: choose a tip on the arm with --tip"
         )
-    keep = _actuated_joints(full, tip_id, tip, joints)
-    q_ref = pin.neutral(full)
-    for jname, value in (locked or {}).items():
-        if not full.existJointName(jname):
-            raise RobotError(f"cannot lock {jname!r}: the URDF has no such joint")
-        jj = full.joints[full.getJointId(jname)]
-        q_ref[jj.idx_q] = value
+    keep = actuated_joints(full, tip_id, tip, joints, mimic)
+    q_ref = reference_configuration(full, locked)
     lock = [j for j in range(1, full.njoints) if j not in keep]
     model = pin.buildReducedModel(full, lock, q_ref) if lock else full
     tip_id = _find_frame(model, tip)
@@ -302,41 +289,17 @@ def load_robot(
     )
 
 
-def _parse_urdf(path: Path, text: str) -> pin.Model:
-    """The full Pinocchio model of a URDF's ``text`` (read from ``path``).
+def _parse_urdf(path: Path, text: str) -> tuple[pin.Model, dict[str, str]]:
+    """The full Pinocchio model of a URDF's ``text`` (read from ``path``), and its mimic joints
+    (name -> the joint it mimics).
 
     Raises:
         RobotError: a URDF Pinocchio cannot parse (with urdfdom's own error line when it wrote one).
     """
     with _stderr_captured() as said:
         try:
-            return pin.buildModelFromXML(text)
+            return pin.buildModelFromXML(text), mimic_joints(text)
         except (RuntimeError, ValueError) as exc:
             error = " ".join(str(exc).split())
     detail = next((ln.strip() for ln in said() if ln.strip().lower().startswith("error")), "")
     raise RobotError(f"cannot load URDF {path}: {detail or error}: fix the URDF (check it with check_urdf)")
-
-
-def _actuated_joints(full: pin.Model, tip_id: int, tip: str, joints: Iterable[str] | None) -> list[int]:
-    """Ids in ``full`` of the joints left actuated: the base-to-tip path, or ``joints`` on it.
-
-    Raises:
-        RobotError: a joint unknown or off the path, or one neither revolute nor prismatic.
-    """
-    keep = _joint_path(full, full.frames[tip_id].parentJoint)
-    if joints is not None:
-        wanted = set(joints)
-        unknown = wanted - set(full.names[1:])
-        if unknown:
-            raise RobotError(f"the URDF has no joint named {', '.join(sorted(unknown))}")
-        off_path = wanted - {full.names[j] for j in keep}
-        if off_path:
-            raise RobotError(f"joint(s) {', '.join(sorted(off_path))} are not between the base and {tip!r}")
-        keep = [j for j in keep if full.names[j] in wanted]
-    for j in keep:
-        if full.joints[j].nv != 1:
-            raise RobotError(
-                f"joint {full.names[j]!r} is a {full.joints[j].shortname()}: "
-                "only revolute, continuous and prismatic joints can be calibrated"
-            )
-    return keep
