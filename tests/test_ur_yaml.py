@@ -21,9 +21,9 @@ import numpy as np
 import pinocchio as pin
 import pytest
 import yaml
+from cli_run import one_error_line, run
 
 import pincal
-from pincal.cli import main
 from pincal.ur_yaml import (
     DEFAULT_DH,
     SEGMENTS,
@@ -212,21 +212,6 @@ def _ur_description_urdf(entries: list[tuple[float, ...]]) -> str:
     return "\n".join([*parts, "</robot>"]) + "\n"
 
 
-def _run(capsys: pytest.CaptureFixture[str], *args: str | Path) -> tuple[int, str, str]:
-    capsys.readouterr()
-    code = main([str(a) for a in args])
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
-def _one_error_line(capsys: pytest.CaptureFixture[str], *args: str | Path) -> str:
-    code, _, err = _run(capsys, *args)
-    assert code == 2, err
-    lines = err.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("pincal: error: "), err
-    return lines[0]
-
-
 def _predicts(yaml_file: Path, side: Path, test: pincal.Dataset) -> float:
     """RMS [m] of held-out measurements against the YAML's chain (ur_description's
     construction) with the sidecar's registration and tool."""
@@ -249,7 +234,7 @@ def test_cli_writes_the_yaml(
     pincal.write_csv(tmp_path / "fit.csv", fit, units="mm")
     out, report = tmp_path / "robot_calibration.yaml", tmp_path / "report.json"
     kinematics = ["--kinematics", source] if given == "factory" else []
-    code, text, err = _run(
+    code, text, err = run(
         capsys, "calibrate", "ur5", tmp_path / "fit.csv", "--units", "mm", *kinematics, "--params", "all",
         "-o", out, "--report", report,
     )  # fmt: skip
@@ -274,7 +259,7 @@ def test_ur_description_urdf_takes_the_yaml_as_is(
     assert applied.urdf_text.count("base_link_inertia") == urdf.read_text().count("base_link_inertia")
     _, fit, test = pincal.simulate(applied, 50, 30, seed=6)
     pincal.write_csv(tmp_path / "fit.csv", fit)
-    code, _, err = _run(
+    code, _, err = run(
         capsys, "calibrate", urdf, tmp_path / "fit.csv", "--params", "all", "-o", tmp_path / "k.yaml"
     )
     assert code == 0, err
@@ -288,28 +273,28 @@ def test_what_cannot_be_a_ur_yaml_is_one_line(
     """Another robot, another UR type, a broken YAML, the YAML as its own output, a locked joint."""
     data = tmp_path / "d.csv"
     pincal.write_csv(data, pincal.simulate(pincal.load_robot("ur5"), 30, 1, seed=0)[1])
-    assert "UR robot" in _one_error_line(capsys, "twists", "panda", "--kinematics", files["ur5"])
-    assert "same UR type" in _one_error_line(capsys, "twists", "ur10", "--kinematics", files["ur5"])
+    assert "UR robot" in one_error_line(capsys, "twists", "panda", "--kinematics", files["ur5"])
+    assert "same UR type" in one_error_line(capsys, "twists", "ur10", "--kinematics", files["ur5"])
     broken = tmp_path / "broken.yaml"
     broken.write_text(files["ur5"].read_text().replace("wrist_3:", "wrist_9:"))
-    assert "kinematics.wrist_3" in _one_error_line(capsys, "twists", "ur5", "--kinematics", broken)
+    assert "kinematics.wrist_3" in one_error_line(capsys, "twists", "ur5", "--kinematics", broken)
     broken.write_text("kinematics: [1, 2\n")
-    assert "cannot read the kinematics YAML" in _one_error_line(
+    assert "cannot read the kinematics YAML" in one_error_line(
         capsys, "twists", "ur5", "--kinematics", broken
     )
-    line = _one_error_line(
+    line = one_error_line(
         capsys, "calibrate", "ur5", data, "--kinematics", files["ur5"], "-o", files["ur5"], "--force"
     )
     assert "is the kinematics YAML" in line
     panda = pincal.simulate(pincal.load_robot("panda"), 30, 1, seed=0)[1]
     pincal.write_csv(tmp_path / "p.csv", panda)
-    assert "UR robot" in _one_error_line(
+    assert "UR robot" in one_error_line(
         capsys, "calibrate", "panda", tmp_path / "p.csv", "-o", tmp_path / "x.yaml"
     )
-    line = _one_error_line(
+    line = one_error_line(
         capsys, "calibrate", "ur5", data, "--lock", "wrist_3_joint", "-o", tmp_path / "x.yaml"
     )
     assert "six UR joints" in line
-    assert "--add-frame needs" in _one_error_line(
+    assert "--add-frame needs" in one_error_line(
         capsys, "calibrate", "ur5", data, "-o", tmp_path / "x.yaml", "--add-frame", "smr"
     )

@@ -12,9 +12,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from cli_run import one_error_line, run
 
 import pincal
-from pincal.cli import main
 from pincal.descriptions import PackageNotFoundError, find_package
 
 DATA = Path(__file__).resolve().parent / "data" / "xacro"
@@ -33,22 +33,6 @@ def _no_ros_paths(monkeypatch: pytest.MonkeyPatch) -> None:
 
 def _robot(**args: str) -> pincal.Robot:
     return pincal.load_robot(XACRO, xacro_args=args, package_paths={"pincal_test_parts": PARTS})
-
-
-def _run(capsys: pytest.CaptureFixture[str], *args: str | Path) -> tuple[int, str, str]:
-    capsys.readouterr()
-    code = main([str(a) for a in args])
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
-def _one_error_line(capsys: pytest.CaptureFixture[str], *args: str | Path) -> str:
-    """Run the command; expect exit 2 and exactly one ``pincal: error:`` line; return it."""
-    code, _, err = _run(capsys, *args)
-    assert code == 2, err
-    lines = err.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("pincal: error: "), err
-    return lines[0]
 
 
 def test_the_argument_and_the_included_macro_make_the_chain() -> None:
@@ -83,7 +67,7 @@ def test_calibrates_end_to_end(capsys: pytest.CaptureFixture[str], tmp_path: Pat
     pincal.write_csv(tmp_path / "fit.csv", fit, units="mm")
     pincal.write_csv(tmp_path / "test.csv", test, units="mm")
     out, report = tmp_path / "arm_calibrated.urdf", tmp_path / "report.json"
-    code, text, err = _run(
+    code, text, err = run(
         capsys, "calibrate", XACRO, tmp_path / "fit.csv", "--units", "mm", "--test", tmp_path / "test.csv",
         "--xacro-arg", f"upper_length:={UPPER}", "--package-path", PACKAGE, "--params", "all",
         "-o", out, "--report", report,
@@ -105,9 +89,9 @@ def test_calibrates_end_to_end(capsys: pytest.CaptureFixture[str], tmp_path: Pat
 def test_every_robot_command_takes_the_xacro(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     """twists, plan and diagnose read the xacro with the same options."""
     options = ("--package-path", PACKAGE, "--xacro-arg", f"upper_length:={UPPER}")
-    code, out, err = _run(capsys, "twists", XACRO, *options)
+    code, out, err = run(capsys, "twists", XACRO, *options)
     assert code == 0 and "joint_6" in out, err
-    code, _, err = _run(
+    code, _, err = run(
         capsys, "plan", XACRO, "--poses", "12", "--candidates", "200", "-o", tmp_path / "p.csv", *options
     )
     assert code == 0, err
@@ -121,10 +105,10 @@ def test_a_missing_package_is_one_line_naming_it(capsys: pytest.CaptureFixture[s
     """No --package-path and no search path: one line that names the package and what to give."""
     data = tmp_path / "d.csv"
     data.write_text("joint_1,joint_2,joint_3,joint_4,joint_5,joint_6,x,y,z\n" + "0,0,0,0,0,0,0,0,0\n" * 10)
-    line = _one_error_line(capsys, "calibrate", XACRO, data)
+    line = one_error_line(capsys, "calibrate", XACRO, data)
     assert "'pincal_test_parts'" in line and "--package-path pincal_test_parts=DIR" in line
     assert "arm.urdf.xacro" in line
-    line = _one_error_line(capsys, "twists", XACRO, "--package-path", f"other={PARTS}")
+    line = one_error_line(capsys, "twists", XACRO, "--package-path", f"other={PARTS}")
     assert "'pincal_test_parts'" in line
 
 
@@ -142,19 +126,19 @@ def test_bad_xacro_options_are_one_line(
 ) -> None:
     """A misspelt argument, a malformed option or a missing folder: one line saying which."""
     full = ["--package-path", PACKAGE] if "--package-path" not in options else []
-    assert expected in _one_error_line(capsys, "twists", XACRO, *full, *options)
+    assert expected in one_error_line(capsys, "twists", XACRO, *full, *options)
 
 
 def test_a_broken_xacro_is_one_line(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     """An undefined property, malformed XML, or --xacro-arg on a plain URDF: one line each."""
     broken = tmp_path / "broken.urdf.xacro"
     broken.write_text(XACRO.read_text().replace("${upper}", "${no_such_property}"))
-    assert "no_such_property" in _one_error_line(capsys, "twists", broken, "--package-path", PACKAGE)
+    assert "no_such_property" in one_error_line(capsys, "twists", broken, "--package-path", PACKAGE)
     broken.write_text(XACRO.read_text().replace("</robot>", ""))
-    assert "cannot process xacro" in _one_error_line(capsys, "twists", broken, "--package-path", PACKAGE)
-    assert "is not one" in _one_error_line(capsys, "twists", "ur5", "--xacro-arg", "a:=1")
+    assert "cannot process xacro" in one_error_line(capsys, "twists", broken, "--package-path", PACKAGE)
+    assert "is not one" in one_error_line(capsys, "twists", "ur5", "--xacro-arg", "a:=1")
     entity = tmp_path / "entity.urdf.xacro"
     entity.write_text(
         '<?xml version="1.0"?>\n<!DOCTYPE r [<!ENTITY e SYSTEM "file:///etc/passwd">]>\n<robot/>'
     )
-    assert "DOCTYPE" in _one_error_line(capsys, "twists", entity)
+    assert "DOCTYPE" in one_error_line(capsys, "twists", entity)
