@@ -14,7 +14,7 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
-from .errors import DataError, IdentifiabilityError, NotSupportedError, PincalError, RobotError
+from .errors import DataError, IdentifiabilityError, NotSupportedError, OutputError, PincalError, RobotError
 from .options import BUNDLED, MODELS
 
 if TYPE_CHECKING:  # the same names for type checkers; at run time each loads on first use
@@ -161,6 +161,7 @@ __all__ = [
     "ModelChoice",
     "NotSupportedError",
     "OffsetsModel",
+    "OutputError",
     "PincalError",
     "PlacementsModel",
     "Plan",

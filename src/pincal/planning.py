@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from .candidates import candidate_poses
+from .candidates import candidate_poses, check_memory
 from .data import Dataset, atomic_write
 from .effects import Extension
 from .errors import DataError, IdentifiabilityError
@@ -280,6 +280,7 @@ def plan_poses(
         )
     if not 0 < n_poses <= candidates:
         raise DataError(f"--poses {n_poses} must be between 1 and the number of candidates ({candidates})")
+    check_memory(robot, candidates, measure, n_poses)
     point = np.zeros(3) if tool is None else np.asarray(tool, float)
 
     def feasible(n: int, at: int) -> np.ndarray:

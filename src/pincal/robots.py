@@ -26,6 +26,7 @@ import pinocchio as pin
 
 from .errors import RobotError
 from .options import BUNDLED
+from .urdf_checks import check_urdf_structure
 
 _FRAME_PREFERENCE = (pin.FrameType.BODY, pin.FrameType.FIXED_JOINT, pin.FrameType.OP_FRAME)
 
@@ -300,10 +301,12 @@ def _parse_urdf(path: Path) -> pin.Model:
     """The full Pinocchio model of a URDF.
 
     Raises:
-        RobotError: unreadable or refused file (:func:`read_urdf_text`), or a URDF Pinocchio
-            cannot parse (with urdfdom's own error line when it wrote one).
+        RobotError: unreadable or refused file (:func:`read_urdf_text`), a structure that is not a
+            tree of well-formed joints (:func:`~pincal.urdf_checks.check_urdf_structure`), or a URDF
+            Pinocchio cannot parse (with urdfdom's own error line when it wrote one).
     """
     text = read_urdf_text(path)
+    check_urdf_structure(text, path)  # what would crash or mislead the parser, refused first
     with _stderr_captured() as said:
         try:
             return pin.buildModelFromXML(text)

@@ -36,10 +36,10 @@ import pinocchio as pin
 from lxml import etree
 
 from .calibration import Calibration
-from .data import atomic_write
 from .effects import Extension, Payload
 from .errors import DataError, PincalError
-from .kinematics import Chain, forward
+from .files import atomic_write_many
+from .kinematics import Chain, forward, rigid_transform
 from .robots import Robot, load_robot
 
 _PARSER = etree.XMLParser(resolve_entities=False, no_network=True, load_dtd=False, remove_comments=False)
@@ -247,18 +247,24 @@ def check_output(path: Path, robot: Robot) -> None:
 def write_corrected_urdf(
     cal: Calibration, path: str | Path, add_frame: str | None = None
 ) -> tuple[Path, Path]:
-    """Write the corrected URDF and its sidecar ``<stem>.calibration.json``, atomically.
+    """Write the corrected URDF and its sidecar ``<stem>.calibration.json``, both or neither.
 
     Raises:
         DataError: the output is the input URDF, or its folder does not exist.
     """
+    files = corrected_files(cal, path, add_frame)
+    atomic_write_many(files)
+    return files[0][0], files[1][0]
+
+
+def corrected_files(
+    cal: Calibration, path: str | Path, add_frame: str | None = None
+) -> list[tuple[Path, str]]:
+    """The corrected URDF at ``path`` and its sidecar beside it: [(path, text), (sidecar, text)]."""
     path = Path(path)
     check_output(path, cal.robot)
-    side = sidecar_path(path)
-    text = corrected_urdf(cal, add_frame)
-    atomic_write(path, text.decode("utf-8"))
-    atomic_write(side, json.dumps(sidecar(cal, path.name), indent=2) + "\n")
-    return path, side
+    text = corrected_urdf(cal, add_frame).decode("utf-8")
+    return [(path, text), (sidecar_path(path), json.dumps(sidecar(cal, path.name), indent=2) + "\n")]
 
 
 @dataclass(frozen=True, eq=False)
@@ -332,8 +338,10 @@ def load_calibration(urdf: str | Path, sidecar: str | Path | None = None) -> Cal
             payload = None if load is None else Payload(float(load["mass_kg"]), (com[0], com[1], com[2]))
             ext = Extension(robot, spec["effect"], spec["joint"], int(spec.get("harmonic", 1)), payload)
             effect = np.array([float(spec["parameters"][n]["value"]) for n in ext.names])
-        tool = pin.SE3(np.array(side["tip_T_tool"]["matrix"], dtype=float))
-        registration = None if reg is None else pin.SE3(np.array(reg["matrix"], dtype=float))
+            if not np.all(np.isfinite([*effect, *com, payload.mass if payload else 0.0])):
+                raise ValueError("extension: a parameter that is not a finite number")
+        tool = rigid_transform(side["tip_T_tool"]["matrix"], "tip_T_tool")
+        registration = None if reg is None else rigid_transform(reg["matrix"], "instrument_T_base")
         return CalibratedRobot(robot, tool, str(side.get("measure", "position")), ext, effect, registration)
     except (KeyError, TypeError, ValueError) as exc:
         raise DataError(f"{path} is not a pincal calibration sidecar: bad or missing {exc}") from None

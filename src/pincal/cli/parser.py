@@ -9,6 +9,15 @@ from typing import Any, NoReturn
 
 from ..errors import PincalError
 from ..options import BUNDLED, LOSSES, MEASURES, MODELS, ORIENTATIONS, THRESHOLD, UNITS
+from .numeric import count as _count
+from .numeric import folds as _folds
+from .numeric import fraction as _fraction
+from .numeric import height as _height
+from .numeric import reach as _reach
+from .numeric import rotation_weight as _rotation_weight
+from .numeric import seed as _seed
+from .numeric import sigmas as _sigmas
+from .numeric import threads as _threads
 
 
 class _Parser(argparse.ArgumentParser):
@@ -16,24 +25,6 @@ class _Parser(argparse.ArgumentParser):
 
     def error(self, message: str) -> NoReturn:
         raise PincalError(f"{message} (see '{self.prog} --help')")
-
-
-def _whole(text: str, minimum: int, what: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if value < minimum:
-        raise argparse.ArgumentTypeError(f"{what} is {minimum} or more, got {value}")
-    return value
-
-
-def _folds(text: str) -> int:
-    return _whole(text, 2, "the number of cross-validation folds")
-
-
-def _seed(text: str) -> int:
-    return _whole(text, 0, "a seed")
 
 
 def _payload(text: str) -> Any:
@@ -59,7 +50,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="pincal", description="Kinematic calibration of robot arms on Pinocchio.")
     parser.add_argument(
         "--threads",
-        type=lambda text: _whole(text, 0, "--threads"),
+        type=_threads,
         default=None,
         help="BLAS threads (default: $PINCAL_THREADS, else 1; 0 leaves BLAS as it is)",
     )
@@ -74,7 +65,7 @@ def _add_calibrate(sub: Any) -> None:
     cal = sub.add_parser("calibrate", help="identify a kinematic model from measurements")
     _add_data_options(cal)
     cal.add_argument("--test", type=Path, help="held-out poses (CSV) for the error after calibration")
-    cal.add_argument("--holdout", type=float, help="fraction of the poses to hold out instead of --test")
+    cal.add_argument("--holdout", type=_fraction, help="fraction of the poses to hold out instead of --test")
     cal.add_argument("--seed", type=_seed, default=0, help="seed of the --holdout split")
     cal.add_argument("--report", type=Path, help="write the JSON report here")
     cal.add_argument(
@@ -177,18 +168,18 @@ def _add_plan(sub: Any) -> None:
     plan = sub.add_parser("plan", help="choose measurement poses for identifiability (D-optimal)")
     plan.add_argument("robot", help=f"a .urdf path or a bundled robot ({', '.join(BUNDLED)})")
     plan.add_argument("--tip", help="the measured frame (default: the robot's documented tip)")
-    plan.add_argument("--poses", type=int, required=True, help="number of poses to measure")
+    plan.add_argument("--poses", type=_count, required=True, help="number of poses to measure")
     plan.add_argument("--model", choices=MODELS, default="placements")
     plan.add_argument("--measure", choices=MEASURES, default="position")
     plan.add_argument(
-        "--candidates", type=int, default=1000, help="random feasible candidates to choose from"
+        "--candidates", type=_count, default=1000, help="random feasible candidates to choose from"
     )
     plan.add_argument("--seed", type=_seed, default=0)
     plan.add_argument("--units", choices=sorted(UNITS), default="m", help="unit of lengths given below")
     plan.add_argument("--tool-point", type=_vector3, help="the measured point on the tip, X,Y,Z (if known)")
-    plan.add_argument("--clearance", type=float, default=0.05, help="height above the floor z = 0 [m]")
+    plan.add_argument("--clearance", type=_height, default=0.05, help="height above the floor z = 0 [m]")
     plan.add_argument("--instrument", type=_vector3, help="instrument position X,Y,Z in the base frame")
-    plan.add_argument("--reach", type=float, help="with --instrument: its range [units]")
+    plan.add_argument("--reach", type=_reach, help="with --instrument: its range [units]")
     plan.add_argument("--extend", metavar="EFFECT:JOINT", help="plan for a non-geometric effect too")
     plan.add_argument("--degrees", action="store_true", help="write revolute joint values in degrees")
     plan.add_argument("-o", "--output", type=Path, required=True, help="the poses (CSV, a column per joint)")
@@ -260,7 +251,7 @@ def _add_data_options(cmd: argparse.ArgumentParser) -> None:
     cmd.add_argument("--loss", choices=LOSSES, default="linear", help="robust loss for outliers")
     cmd.add_argument(
         "--outliers",
-        type=float,
+        type=_sigmas,
         default=THRESHOLD,
         metavar="SIGMAS",
         help=f"leave out poses whose residual is this many robust std above the others' "
@@ -274,7 +265,7 @@ def _add_data_options(cmd: argparse.ArgumentParser) -> None:
     )
     cmd.add_argument(
         "--rotation-weight",
-        type=float,
+        type=_rotation_weight,
         default=0.1,
         help="weight of orientation residuals for pose data [m/rad] (default 0.1: 1 mrad ~ 0.1 mm)",
     )
