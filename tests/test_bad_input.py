@@ -768,7 +768,7 @@ def test_interrupted_write_keeps_the_old_output(
     capfd: pytest.CaptureFixture[str], sim: Sim, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """Interrupted at the rename of an atomic write (Ctrl-C), ``--force`` leaves the old report whole
-    and no temporary file behind."""
+    and no temporary file behind, and the command ends with one line and exit code 130."""
     data = _write(tmp_path / "data.csv", sim.lines)
     report = tmp_path / "r.json"
     report.write_text('{"old": true}\n', encoding="utf-8")
@@ -780,9 +780,10 @@ def test_interrupted_write_keeps_the_old_output(
         replace(src, dst)
 
     monkeypatch.setattr(os, "replace", interrupted)
-    with pytest.raises(KeyboardInterrupt):
-        main(["calibrate", "ur5", str(data), "--model", "offsets", "--report", str(report), "--force"])
+    run = _run(capfd, "calibrate", "ur5", data, "--model", "offsets", "--report", report, "--force")
     monkeypatch.undo()
+    assert run.code == 130 and run.err.splitlines() == [run.err.strip()], run.err
+    assert run.err.startswith("pincal: error: interrupted")
     assert report.read_text(encoding="utf-8") == '{"old": true}\n'
     assert sorted(p.name for p in tmp_path.iterdir()) == ["data.csv", "r.json"]
 

@@ -14,10 +14,11 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
-from .errors import DataError, IdentifiabilityError, NotSupportedError, PincalError, RobotError
+from .errors import DataError, IdentifiabilityError, NotSupportedError, OutputError, PincalError, RobotError
 from .options import BUNDLED, MODELS
 
 if TYPE_CHECKING:  # the same names for type checkers; at run time each loads on first use
+    from .calibrated_robot import CalibratedRobot, load_calibration
     from .calibration import Calibration
     from .checks import check_columns, check_limits, check_scale
     from .choice import ModelChoice
@@ -57,7 +58,7 @@ if TYPE_CHECKING:  # the same names for type checkers; at run time each loads on
         read_ur_kinematics,
         write_ur_kinematics,
     )
-    from .urdf_writer import CalibratedRobot, corrected_urdf, load_calibration, write_corrected_urdf
+    from .urdf_writer import corrected_urdf, write_corrected_urdf
 
 __version__ = "0.1.0"
 
@@ -138,9 +139,9 @@ _LAZY: dict[str, str] = {
     "left_jacobian": "twists",
     "nominal_twists": "twists",
     "poe_forward": "twists",
-    "CalibratedRobot": "urdf_writer",
+    "CalibratedRobot": "calibrated_robot",
     "corrected_urdf": "urdf_writer",
-    "load_calibration": "urdf_writer",
+    "load_calibration": "calibrated_robot",
     "write_corrected_urdf": "urdf_writer",
     "URKinematics": "ur_yaml",
     "calibrated_ur_kinematics": "ur_yaml",
@@ -175,6 +176,7 @@ __all__ = [
     "ModelChoice",
     "NotSupportedError",
     "OffsetsModel",
+    "OutputError",
     "PincalError",
     "PlacementsModel",
     "Plan",

@@ -136,3 +136,53 @@ def socket_candidates(
         )
     order = rng.permutation(len(q))[:n]
     return q[order], at[order]
+
+
+#: Copies of each candidate's identification rows the planner holds at once (measured: 3 to 4).
+_ROW_COPIES = 4
+
+
+def check_memory(robot: Robot, candidates: int, measure: str, n_poses: int) -> None:
+    """Refuse a number of candidates whose identification rows would not fit in memory.
+
+    Each candidate holds a Jacobian row block (3 rows for a point, 6 for a pose) over at most
+    ``6 (n + 1) + 9`` parameters, a few copies of it, and for distance data its pairs with the
+    chosen poses.
+
+    Raises:
+        DataError: the estimate is above half the memory available, with the largest count that fits.
+    """
+    params = 6 * (robot.n_joints + 1) + 9
+    rows = 6 if measure == "pose" else 3
+    per_candidate = 8 * params * (_ROW_COPIES * rows + (3 * n_poses if measure == "distance" else 0)) + 1024
+    free = available_memory()
+    if free is None or candidates * per_candidate <= free / 2:
+        return
+    most = max(1, int(free / 2 // per_candidate))
+    raise DataError(
+        f"--candidates {candidates} needs about {candidates * per_candidate / 1e9:.3g} GB of memory, "
+        f"and {free / 1e9:.3g} GB is available: ask for {most} or fewer (1000 to 10000 are plenty)"
+    )
+
+
+def available_memory() -> float | None:
+    """Memory this process can still use [bytes]: the system's available memory, or the control
+    group's limit if lower (None when neither can be read)."""
+    found: list[float] = []
+    try:
+        with open("/proc/meminfo", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    found.append(float(line.split()[1]) * 1024)
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        with open("/sys/fs/cgroup/memory.max", encoding="ascii") as fh:
+            limit = fh.read().strip()
+        with open("/sys/fs/cgroup/memory.current", encoding="ascii") as fh:
+            used = float(fh.read().strip())
+        if limit != "max":
+            found.append(float(limit) - used)
+    except (OSError, ValueError):
+        pass
+    return min(found) if found else None

@@ -77,13 +77,6 @@ def check_limits(robot: Robot, data: Dataset, degrees: bool = False) -> None:
     Raises:
         DataError: the first joint whose values leave its limits, with the row and a hint.
     """
-    revolute = ~np.asarray(robot.prismatic, dtype=bool)
-    small = np.deg2rad(2 * np.pi) + 1e-12  # [rad]: 2π read as degrees
-    if degrees and revolute.any() and len(data) > 2 and np.abs(data.q[:, revolute]).max() <= small:
-        raise DataError(
-            "with --degrees every revolute joint value is within ±6.3 degrees: "
-            "the values look like radians, drop --degrees"
-        )
     tol = np.where(robot.prismatic, LIMIT_TOLERANCE[1], LIMIT_TOLERANCE[0])
     below = data.q < robot.lower - tol
     above = data.q > robot.upper + tol
@@ -112,17 +105,29 @@ def check_limits(robot: Robot, data: Dataset, degrees: bool = False) -> None:
     )
 
 
-def check_scale(robot: Robot, data: Dataset, units: str = "m") -> None:
+def small_angles(robot: Robot, data: Dataset) -> bool:
+    """Whether every revolute joint value is within ±2π degrees (radians read as degrees would be)."""
+    revolute = ~np.asarray(robot.prismatic, dtype=bool)
+    small = np.deg2rad(2 * np.pi) + 1e-12  # [rad]: 2π read as degrees
+    return bool(revolute.any() and len(data) > 2 and np.abs(data.q[:, revolute]).max() <= small)
+
+
+def check_scale(robot: Robot, data: Dataset, units: str = "m", degrees: bool = False) -> None:
     """The measured points spread about as far as the nominal tip does at the same joint values.
 
     The instrument's registration and the measured point are unknown, but neither changes the
     spread of the points by more than a small factor; a factor of :data:`SCALE_RATIO` or more
     means the wrong unit.
 
+    Small joint motions given with ``--degrees`` (every value within ±6.3°, a real small-motion
+    experiment or radians read as degrees) are refused only when the points say which: they spread
+    like the tip with the values read as radians, and not read as degrees.
+
     Args:
         robot: the chain.
         data: the poses and measured points [m, as read].
         units: the unit the file was read in (for the hint).
+        degrees: whether the file's revolute values were degrees (for the hint).
 
     Raises:
         DataError: the spreads differ by more than :data:`SCALE_RATIO`.
@@ -135,12 +140,16 @@ def check_scale(robot: Robot, data: Dataset, units: str = "m") -> None:
         raise DataError("the URDF puts the tip beyond any finite distance: check its joint origins")
     if not np.isfinite(measured) or measured > 1e6:  # [m]
         raise DataError(f"the measured points x,y,z are {measured:.3g} m apart or more: check their unit")
-    if len(data) < 3 or tip_spread < 1e-3:  # [m] poses alike: the rank check says why
+    if len(data) < 3:
         return
-    ratio = measured / tip_spread
+    ratio = measured / tip_spread if tip_spread > 0 else np.inf
     if 1.0 / SCALE_RATIO < ratio < SCALE_RATIO:
         return
-    if ratio >= SCALE_RATIO:
+    if degrees and small_angles(robot, data) and _fits_as_radians(robot, data, measured):
+        hint = "the joint values look like radians given with --degrees: drop --degrees"
+    elif tip_spread < 1e-3:  # [m] poses alike: the rank check says why
+        return
+    elif ratio >= SCALE_RATIO:
         hint = (
             "the values look like millimetres: pass --units mm"
             if units == "m" and 300 < ratio < 3000
@@ -156,6 +165,16 @@ def check_scale(robot: Robot, data: Dataset, units: str = "m") -> None:
         f"the measured points x,y,z spread {measured:.4g} m around their centre (read as {units}), "
         f"but the robot's tip spreads {tip_spread:.3g} m at the same joint values: {hint}"
     )
+
+
+def _fits_as_radians(robot: Robot, data: Dataset, measured: float) -> bool:
+    """Whether the measured points spread like the tip when the (degree) joint values are read as radians."""
+    q = data.q.copy()
+    revolute = ~np.asarray(robot.prismatic, dtype=bool)
+    q[:, revolute] = np.rad2deg(q[:, revolute])
+    tips = np.array([robot.frame_placement(qi).translation for qi in q])
+    tip_spread = spread(tips)
+    return bool(tip_spread > 0 and 1.0 / SCALE_RATIO < measured / tip_spread < SCALE_RATIO)
 
 
 def spread(points: np.ndarray) -> float:

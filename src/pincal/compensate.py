@@ -24,11 +24,11 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from .calibrated_robot import CalibratedRobot
 from .data import Targets, atomic_write
 from .errors import DataError, NotSupportedError
 from .measurements import ROTATION_WEIGHT
 from .robots import Robot
-from .urdf_writer import CalibratedRobot
 
 STATUSES = ("ok", "unreachable", "singular")
 

@@ -15,8 +15,6 @@ from __future__ import annotations
 import csv
 import io
 import math
-import os
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -25,6 +23,7 @@ import numpy as np
 import pinocchio as pin
 
 from .errors import DataError
+from .files import STDIN, atomic_write, read_input_text
 from .options import UNITS
 from .robots import Robot
 
@@ -111,15 +110,11 @@ class Dataset:
 
 
 def _read_lines(path: Path) -> list[str]:
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except FileNotFoundError:
-        raise DataError(f"data file not found: {path}") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise DataError(f"cannot read data file {path}: {exc}") from None
+    text = read_input_text(path)  # once: standard input and pipes cannot be read twice
     lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
-        raise DataError(f"{path} is empty: it needs a header line and one row per pose")
+        name = "standard input" if str(path) == STDIN else path
+        raise DataError(f"{name} is empty: it needs a header line and one row per pose")
     return lines
 
 
@@ -275,19 +270,6 @@ def write_csv(path: str | Path, data: Dataset, units: str = "m") -> None:
     atomic_write(path, buffer.getvalue())
 
 
-def atomic_write(path: str | Path, text: str) -> None:
-    """Write ``text`` to ``path`` atomically: a temporary file in the same folder, then a rename."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent or ".", prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 @dataclass(frozen=True)
 class Targets:
     """Cartesian targets of the tool in the base frame: positions (N, 3) [m], rotations (N, 3, 3) or None."""
@@ -325,5 +307,7 @@ def read_program(
         raise DataError(f"{path}: a program needs a column per joint ({', '.join(names)}) or targets x,y,z")
     quat = ["qw", "qx", "qy", "qz"] if {"qw", "qx", "qy", "qz"} <= header else []
     values = read_table(path, ["x", "y", "z", *quat], "x,y,z (and optionally qw,qx,qy,qz)")
+    if quat:
+        check_quaternions(path, values[:, 3:])
     rot = np.array([pin.Quaternion(*v[3:]).normalized().matrix() for v in values]) if quat else None
     return Targets(values[:, :3] * UNITS[units], rot)

@@ -65,8 +65,10 @@ class Payload:
             values = [float(v) for v in text.split(",")]
         except ValueError:
             values = []
-        if len(values) != 4 or not np.all(np.isfinite(values)) or values[0] < 0:
-            raise DataError(f"--payload {text!r}: write MASS,X,Y,Z (kg, then m in the tip frame)")
+        if len(values) != 4 or not np.all(np.abs(values) < 1e6) or values[0] < 0:  # NaN fails too
+            raise DataError(
+                f"--payload {text!r}: write MASS,X,Y,Z, numbers below 1e6 (kg, then m in the tip frame)"
+            )
         return cls(values[0], (values[1], values[2], values[3]))
 
 

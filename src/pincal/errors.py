@@ -23,5 +23,9 @@ class IdentifiabilityError(PincalError):
     """The data cannot identify what was asked (too few poses, rank deficiency)."""
 
 
+class OutputError(PincalError):
+    """An output cannot be written: not a regular file, a folder that refuses it, a full disk."""
+
+
 class NotSupportedError(PincalError):
     """A requested feature exists in the interface but not (yet) for this input."""

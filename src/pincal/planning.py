@@ -27,11 +27,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .candidates import candidate_poses, socket_candidates
-from .data import atomic_write
+from .candidates import candidate_poses, check_memory, socket_candidates
 from .design import CRITERIA, exchange, greedy
 from .effects import Extension
 from .errors import DataError, IdentifiabilityError
+from .files import atomic_write
 from .fixed_points import PointDistance
 from .information import Information, tool_hypotheses
 from .measurements import MEASURES, ROTATION_WEIGHT
@@ -186,6 +186,7 @@ def plan_poses(
         IdentifiabilityError: fewer equations than identifiable parameters.
     """
     _check(measure, criterion, n_poses, candidates, sockets)
+    check_memory(robot, candidates, measure, n_poses)
     point = np.zeros(3) if tool is None else np.asarray(tool, float)
     tolerance = (0.01 if tool is not None else 0.1) if tool_tolerance is None else tool_tolerance
     tools = tool_hypotheses(tool, tolerance)

@@ -9,13 +9,14 @@ the same after the model is extended.
 
 from __future__ import annotations
 
+import io
 import textwrap
 from pathlib import Path
 
 import numpy as np
 
 from .calibration import Calibration
-from .data import Dataset
+from .data import Dataset, atomic_write
 from .diagnose import Diagnosis
 from .effects import gravity_torques
 from .errors import DataError
@@ -67,6 +68,7 @@ def plot_diagnosis(diagnosis: Diagnosis, data: Dataset, path: str | Path) -> Pat
     axes[0].legend(fontsize=8)
     fig.suptitle(textwrap.fill(diagnosis.summary(), 130), fontsize=9)
     fig.tight_layout()
-    out = Path(path)
-    fig.savefig(out, dpi=110)
+    out, png = Path(path), io.BytesIO()
+    fig.savefig(png, format="png", dpi=110)
+    atomic_write(out, png.getvalue())  # whole or not at all, like every output
     return out

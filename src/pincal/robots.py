@@ -28,6 +28,7 @@ from .descriptions import URDF_SUFFIXES, check_urdf_text, robot_description
 from .errors import RobotError
 from .joint_kinds import actuated_joints, joint_path, mimic_joints, reference_configuration
 from .options import BUNDLED
+from .urdf_checks import check_urdf_structure
 
 if TYPE_CHECKING:
     from .ur_yaml import URKinematics
@@ -294,8 +295,11 @@ def _parse_urdf(path: Path, text: str) -> tuple[pin.Model, dict[str, str]]:
     (name -> the joint it mimics).
 
     Raises:
-        RobotError: a URDF Pinocchio cannot parse (with urdfdom's own error line when it wrote one).
+        RobotError: a structure that is not a tree of well-formed joints
+            (:func:`~pincal.urdf_checks.check_urdf_structure`), or a URDF Pinocchio cannot parse
+            (with urdfdom's own error line when it wrote one).
     """
+    check_urdf_structure(text, path)  # what would crash or mislead the parser, refused first
     with _stderr_captured() as said:
         try:
             return pin.buildModelFromXML(text), mimic_joints(text)

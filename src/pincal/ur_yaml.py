@@ -33,8 +33,8 @@ import numpy as np
 import pinocchio as pin
 from lxml import etree
 
-from .data import atomic_write
 from .errors import DataError, RobotError
+from .files import atomic_write
 from .robots import Robot
 from .ur_frames import BASE_INERTIA, JOINTS, PARSER, URChain
 

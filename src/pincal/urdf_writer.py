@@ -26,8 +26,6 @@ from __future__ import annotations
 
 import json
 import re
-from dataclasses import dataclass, field
-from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -36,11 +34,10 @@ import pinocchio as pin
 from lxml import etree
 
 from .calibration import Calibration
-from .data import atomic_write
-from .effects import Extension, Payload
 from .errors import DataError, PincalError
+from .files import atomic_write_many
 from .kinematics import Chain, forward
-from .robots import Robot, load_robot
+from .robots import Robot
 
 _PARSER = etree.XMLParser(resolve_entities=False, no_network=True, load_dtd=False, remove_comments=False)
 
@@ -258,93 +255,21 @@ def check_output(path: Path, robot: Robot) -> None:
 def write_corrected_urdf(
     cal: Calibration, path: str | Path, add_frame: str | None = None
 ) -> tuple[Path, Path]:
-    """Write the corrected URDF and its sidecar ``<stem>.calibration.json``, atomically.
+    """Write the corrected URDF and its sidecar ``<stem>.calibration.json``, both or neither.
 
     Raises:
         DataError: the output is the input URDF, or its folder does not exist.
     """
+    files = corrected_files(cal, path, add_frame)
+    atomic_write_many(files)
+    return files[0][0], files[1][0]
+
+
+def corrected_files(
+    cal: Calibration, path: str | Path, add_frame: str | None = None
+) -> list[tuple[Path, str]]:
+    """The corrected URDF at ``path`` and its sidecar beside it: [(path, text), (sidecar, text)]."""
     path = Path(path)
     check_output(path, cal.robot)
-    side = sidecar_path(path)
-    text = corrected_urdf(cal, add_frame)
-    atomic_write(path, text.decode("utf-8"))
-    atomic_write(side, json.dumps(sidecar(cal, path.name), indent=2) + "\n")
-    return path, side
-
-
-@dataclass(frozen=True, eq=False)
-class CalibratedRobot:
-    """A calibration loaded from its files: corrected geometry, tool and joint-angle extension.
-
-    Attributes:
-        robot: the chain of the corrected URDF to the calibrated tip.
-        tool: ``tip_T_tool``, the measured point (and frame, after pose data) on the tip [m].
-        measure: what the calibration measured (``position``, ``pose`` or ``distance``).
-        extension: the identified non-geometric effect, or None.
-        effect: its parameters (units in ``extension.units``).
-        instrument_T_base: the identified registration of the instrument, or None.
-    """
-
-    robot: Robot
-    tool: pin.SE3
-    measure: str = "position"
-    extension: Extension | None = None
-    effect: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    instrument_T_base: pin.SE3 | None = None
-
-    def reached(self, q: np.ndarray) -> np.ndarray:
-        """Joint values (N, n) the robot reaches for commands ``q`` (N, n) [rad or m]."""
-        q = np.atleast_2d(np.asarray(q, dtype=float))
-        return q if self.extension is None else q + self.extension.joint_error(q, self.effect)
-
-    def tool_pose(self, q: np.ndarray) -> pin.SE3:
-        """``base_T_tool`` for one command ``q`` (n,) [rad or m], the extension included."""
-        return self.robot.frame_placement(self.reached(q)[0]) * self.tool
-
-    @cached_property
-    def tool_frame(self) -> tuple[pin.Model, int]:
-        """A copy of the robot's Pinocchio model with a frame ``pincal_tool``, and that frame's id."""
-        model = pin.Model(self.robot.model)
-        tip = model.frames[self.robot.tip_frame_id]
-        placement = tip.placement * self.tool
-        frame = pin.Frame("pincal_tool", tip.parentJoint, self.robot.tip_frame_id, placement, pin.OP_FRAME)
-        return model, model.addFrame(frame)
-
-
-def load_calibration(urdf: str | Path, sidecar: str | Path | None = None) -> CalibratedRobot:
-    """Load what ``pincal calibrate -o FILE.urdf`` wrote: the URDF and ``FILE.calibration.json``.
-
-    Args:
-        urdf: the corrected URDF.
-        sidecar: its sidecar (default: ``<stem>.calibration.json`` beside the URDF).
-
-    Raises:
-        DataError: the sidecar is missing or is not a pincal sidecar.
-        RobotError: the URDF cannot be loaded or lacks the sidecar's tip.
-    """
-    urdf = Path(urdf)
-    path = Path(sidecar) if sidecar is not None else sidecar_path(urdf)
-    try:
-        side = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise DataError(
-            f"no calibration sidecar {path}: give the URDF written by 'pincal calibrate -o', "
-            "with its .calibration.json beside it"
-        ) from None
-    except (OSError, ValueError) as exc:
-        raise DataError(f"cannot read the calibration sidecar {path}: {exc}") from None
-    try:
-        robot = load_robot(urdf, tip=side["tip"], joints=side.get("joints"))
-        reg, spec = side.get("instrument_T_base"), side.get("extension")
-        ext, effect = None, np.zeros(0)
-        if spec is not None:
-            load = spec.get("payload")
-            com = [float(c) for c in load["com_m"]] if load is not None else []
-            payload = None if load is None else Payload(float(load["mass_kg"]), (com[0], com[1], com[2]))
-            ext = Extension(robot, spec["effect"], spec["joint"], int(spec.get("harmonic", 1)), payload)
-            effect = np.array([float(spec["parameters"][n]["value"]) for n in ext.names])
-        tool = pin.SE3(np.array(side["tip_T_tool"]["matrix"], dtype=float))
-        registration = None if reg is None else pin.SE3(np.array(reg["matrix"], dtype=float))
-        return CalibratedRobot(robot, tool, str(side.get("measure", "position")), ext, effect, registration)
-    except (KeyError, TypeError, ValueError) as exc:
-        raise DataError(f"{path} is not a pincal calibration sidecar: bad or missing {exc}") from None
+    text = corrected_urdf(cal, add_frame).decode("utf-8")
+    return [(path, text), (sidecar_path(path), json.dumps(sidecar(cal, path.name), indent=2) + "\n")]

@@ -1,15 +1,19 @@
 """The ``pincal`` command line: :func:`main` and one module per command.
 
-Exit codes: 0 success; 2 unusable input, with one ``pincal: error: ...`` line on stderr; 1 a bug.
+Exit codes: 0 success; 2 unusable input, with one ``pincal: error: ...`` line on stderr; 130
+interrupted (Ctrl-C), with one such line and no partial output; 141 standard output closed early
+(``| head``), quietly; 1 a bug.
 """
 
 from __future__ import annotations
 
 import importlib
+import os
 import sys
 from collections.abc import Sequence
 
 from ..errors import PincalError
+from ..files import forget_inputs
 from .parser import attach_vectors, build_parser
 
 #: The parser (under its former private name, for tests that build it).
@@ -26,9 +30,25 @@ def main(argv: Sequence[str] | None = None) -> int:
         with blas_threads(args.threads):
             return int(command.run(args))
     except PincalError as exc:
-        message = " ".join(str(exc).split())
-        print(f"pincal: error: {message}", file=sys.stderr)
-        return 2
+        return _error(str(exc), 2)
+    except KeyboardInterrupt:
+        return _error("interrupted (Ctrl-C): no output was left half-written", 130)
+    except MemoryError:
+        return _error("out of memory: give fewer poses, candidates or parameters", 2)
+    except BrokenPipeError:  # the reader of stdout went away (| head): end quietly, as cat does
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no error at exit's flush
+        return 141
+    finally:
+        forget_inputs()
+
+
+def _error(message: str, code: int) -> int:
+    """Print the one ``pincal: error:`` line and return ``code`` (on a terminal, over any progress line)."""
+    sys.stdout.flush()
+    clear = "\r\033[K" if sys.stderr.isatty() else ""
+    message = " ".join(message.split())
+    print(f"{clear}pincal: error: {message}", file=sys.stderr)
+    return code
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
-from ..data import atomic_write
 from ..errors import DataError
+from ..files import STDIN, atomic_write_many
 from ..pipeline import calibrate
 from ..report import report_json, summary
 from ..ur_yaml import DEFAULT_DH, read_ur_kinematics, robot_ur_chain, write_ur_kinematics
-from ..urdf_writer import check_frame_name, sidecar_path, write_corrected_urdf
+from ..urdf_writer import check_frame_name, corrected_files, sidecar_path
 from .common import (
     chain,
     check_outputs,
@@ -32,6 +33,8 @@ def _check_arguments(args: argparse.Namespace) -> None:
     check_frame_name(args.add_frame)
     if args.test is not None and args.holdout is not None:
         raise DataError("give either --test or --holdout, not both")
+    if str(args.data) == str(args.test) == STDIN:
+        raise DataError("DATA and --test are both '-': standard input holds one file, give the other by name")
     if args.output is not None and (args.output.is_dir() or not args.output.name):
         raise DataError(f"-o {args.output} is a folder: give a file name such as robot_calibrated.urdf")
     side = None if args.output is None else sidecar_path(args.output)
@@ -74,17 +77,22 @@ def run(args: argparse.Namespace) -> int:
     )
     end_progress(progress)
     print(summary(cal, data))
-    extra = {}
+    files: list[tuple[str | Path, str | bytes]] = []
+    extra: dict[str, str] = {}
     if ur_yaml_output(args):
         source = None if args.kinematics is None else read_ur_kinematics(args.kinematics).calibration_hash
         yaml, side = write_ur_kinematics(cal, args.output, source)
         print(f"UR kinematics YAML written to {yaml}; registration and tool (not in it) to {side}")
         extra = {"ur_kinematics": str(yaml), "sidecar": str(side)}
     elif args.output is not None:
-        urdf, side = write_corrected_urdf(cal, args.output, args.add_frame)
-        print(f"corrected URDF written to {urdf}; registration and tool (not in a URDF) to {side}")
-        extra = {"urdf": str(urdf), "sidecar": str(side)}
+        files = list(corrected_files(cal, args.output, args.add_frame))
+        extra = {"urdf": str(files[0][0]), "sidecar": str(files[1][0])}
     if args.report is not None:
-        atomic_write(args.report, report_json(cal, data, **extra))
+        files.append((args.report, report_json(cal, data, **extra)))
+    atomic_write_many(files)  # every output or none
+    if "urdf" in extra:
+        print(f"corrected URDF written to {extra['urdf']}; registration and tool (not in a URDF) to ", end="")
+        print(extra["sidecar"])
+    if args.report is not None:
         print(f"report written to {args.report}")
     return 0

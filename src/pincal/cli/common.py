@@ -4,6 +4,7 @@ the fit options and a progress line."""
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -11,9 +12,10 @@ from typing import Any
 
 import pinocchio as pin
 
-from ..checks import check_columns, check_limits, check_scale
+from ..checks import check_columns, check_limits, check_scale, small_angles
 from ..data import UNITS, Dataset, csv_columns, read_csv
-from ..errors import DataError
+from ..errors import DataError, OutputError
+from ..files import STDIN, output_target
 from ..fixed_points import parse_point_distances, read_socket_folder
 from ..robots import BUNDLED, Robot, bundled_urdf, load_robot
 
@@ -68,7 +70,9 @@ def chain(args: argparse.Namespace) -> Robot:
 
 
 def check_outputs(args: argparse.Namespace, outputs: Sequence[Path | None], inputs: dict[str, Any]) -> None:
-    """Refuse outputs that are inputs, repeat, sit in no folder, or exist (without ``--force``).
+    """Refuse outputs that are inputs, repeat, are not regular files (a folder, a device, a pipe),
+    sit in no folder or one that cannot be written to, or exist (without ``--force``). A symlink
+    is written through: its target is what is checked.
 
     Args:
         args: the parsed command line (``--force``).
@@ -76,23 +80,25 @@ def check_outputs(args: argparse.Namespace, outputs: Sequence[Path | None], inpu
         inputs: what each input is ("data file", ...) -> its path or ROBOT argument (or None).
     """
     inputs = {**inputs, "kinematics YAML": getattr(args, "kinematics", None)}
-    sources = {label: Path(str(p)) for label, p in inputs.items() if p is not None}
+    sources = {label: Path(str(p)) for label, p in inputs.items() if p is not None and str(p) != STDIN}
     sources = {label: p for label, p in sources.items() if p.is_file()}
     seen: list[Path] = []
     for out in outputs:
         if out is None:
             continue
-        if out.is_dir():
-            raise DataError(f"{out} is a folder: give a file name for the output")
+        target = output_target(out)  # refuses '-', folders and special files, --force or not
         for label, src in sources.items():
-            if out.exists() and out.samefile(src):
+            if target.exists() and target.samefile(src):
                 raise DataError(f"{out} is the {label}: write the output to another file")
-        if out.resolve() in seen:
+        if target in seen:
             raise DataError(f"{out} is named for two outputs: give each its own file")
-        seen.append(out.resolve())
-        if not out.parent.resolve().is_dir():
-            raise DataError(f"the output folder {out.parent} does not exist: create it first")
-        if out.exists() and not args.force:
+        seen.append(target)
+        if not target.parent.is_dir():
+            folder = target.parent if out.is_symlink() else out.parent  # where a symlink points
+            raise DataError(f"the output folder {folder} does not exist: create it first")
+        if not os.access(target.parent, os.W_OK | os.X_OK):
+            raise OutputError(f"cannot write {out}: the folder {target.parent} is not writable")
+        if target.exists() and not args.force:
             raise DataError(f"{out} exists already: pass --force to replace it, or choose another name")
 
 
@@ -125,7 +131,13 @@ def load_data(path: Path, robot: Robot, args: argparse.Namespace) -> Dataset:
         )
     check_limits(robot, data, args.degrees)
     if data.labels is None:  # fixed points have no measured positions to compare
-        check_scale(robot, data, args.units)
+        check_scale(robot, data, args.units, args.degrees)
+    elif args.degrees and small_angles(robot, data):
+        print(
+            f"pincal: warning: {path}: with --degrees every revolute joint value is within ±6.3 degrees: "
+            "if the file holds radians, drop --degrees",
+            file=sys.stderr,
+        )
     return data
 
 

@@ -12,9 +12,9 @@ from .common import check_outputs, robot_options, urdf_path
 
 def run(args: argparse.Namespace) -> int:
     """Run the command; 0 on success."""
+    from ..calibrated_robot import load_calibration
     from ..compensate import compensate_program, write_program
     from ..data import read_program
-    from ..urdf_writer import load_calibration
 
     inputs = {
         "program": args.program,

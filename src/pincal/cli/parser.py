@@ -9,7 +9,8 @@ from typing import Any, NoReturn
 
 from ..errors import PincalError
 from ..options import BUNDLED, LOSSES, MEASURES, MODELS, ORIENTATIONS, THRESHOLD, UNITS
-from .values import folds, mapping, name_list, parameters, payload, seed, vector3, vectors3, whole
+from .numeric import count, folds, fraction, height, reach, rotation_weight, seed, sigmas, threads
+from .values import mapping, name_list, parameters, payload, vector3, vectors3
 
 
 class _Parser(argparse.ArgumentParser):
@@ -24,7 +25,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="pincal", description="Kinematic calibration of robot arms on Pinocchio.")
     parser.add_argument(
         "--threads",
-        type=lambda text: whole(text, 0, "--threads"),
+        type=threads,
         default=None,
         help="BLAS threads (default: $PINCAL_THREADS, else 1; 0 leaves BLAS as it is)",
     )
@@ -39,7 +40,7 @@ def _add_calibrate(sub: Any) -> None:
     cal = sub.add_parser("calibrate", help="identify a kinematic model from measurements")
     _add_data_options(cal)
     cal.add_argument("--test", type=Path, help="held-out poses (CSV) for the error after calibration")
-    cal.add_argument("--holdout", type=float, help="fraction of the poses to hold out instead of --test")
+    cal.add_argument("--holdout", type=fraction, help="fraction of the poses to hold out instead of --test")
     cal.add_argument("--seed", type=seed, default=0, help="seed of the --holdout split")
     cal.add_argument("--report", type=Path, help="write the JSON report here")
     cal.add_argument(
@@ -149,11 +150,11 @@ def _add_plan(sub: Any) -> None:
     plan.add_argument("robot", help=f"a .urdf or .xacro path or a bundled robot ({', '.join(BUNDLED)})")
     _add_robot_options(plan)
     plan.add_argument("--tip", help="the measured frame (default: the robot's documented tip)")
-    plan.add_argument("--poses", type=int, required=True, help="number of poses to measure")
+    plan.add_argument("--poses", type=count, required=True, help="number of poses to measure")
     plan.add_argument("--model", choices=MODELS, default="placements")
     plan.add_argument("--measure", choices=MEASURES, default="position")
     plan.add_argument(
-        "--candidates", type=int, default=1000, help="random feasible candidates to choose from"
+        "--candidates", type=count, default=1000, help="random feasible candidates to choose from"
     )
     plan.add_argument("--seed", type=seed, default=0)
     plan.add_argument("--units", choices=sorted(UNITS), default="m", help="unit of lengths given below")
@@ -167,7 +168,7 @@ def _add_plan(sub: Any) -> None:
     )
     plan.add_argument("--tool-point", type=vector3, help="the measured point on the tip, X,Y,Z, roughly")
     plan.add_argument(
-        "--tool-tolerance", type=float,
+        "--tool-tolerance", type=reach,
         help="how far the real point may be from --tool-point [units] (default 0.01 m; 0.1 m from the tip)",
     )
     plan.add_argument(
@@ -176,9 +177,9 @@ def _add_plan(sub: Any) -> None:
     plan.add_argument(
         "--point-distance", metavar="A,B=D[;...]", help="with --sockets: known distances between them [units]"
     )
-    plan.add_argument("--clearance", type=float, default=0.05, help="height above the floor z = 0 [m]")
+    plan.add_argument("--clearance", type=height, default=0.05, help="height above the floor z = 0 [m]")
     plan.add_argument("--instrument", type=vector3, help="instrument position X,Y,Z in the base frame")
-    plan.add_argument("--reach", type=float, help="with --instrument: its range [units]")
+    plan.add_argument("--reach", type=reach, help="with --instrument: its range [units]")
     plan.add_argument("--extend", metavar="EFFECT:JOINT", help="plan for a non-geometric effect too")
     plan.add_argument("--degrees", action="store_true", help="write revolute joint values in degrees")
     plan.add_argument("-o", "--output", type=Path, required=True, help="the poses (CSV, a column per joint)")
@@ -257,7 +258,7 @@ def _add_data_options(cmd: argparse.ArgumentParser) -> None:
     cmd.add_argument("--loss", choices=LOSSES, default="linear", help="robust loss for outliers")
     cmd.add_argument(
         "--outliers",
-        type=float,
+        type=sigmas,
         default=THRESHOLD,
         metavar="SIGMAS",
         help=f"leave out poses whose residual is this many robust std above the others' "
@@ -271,7 +272,7 @@ def _add_data_options(cmd: argparse.ArgumentParser) -> None:
     )
     cmd.add_argument(
         "--rotation-weight",
-        type=float,
+        type=rotation_weight,
         default=0.1,
         help="weight of orientation residuals for pose data [m/rad] (default 0.1: 1 mrad ~ 0.1 mm)",
     )

@@ -7,8 +7,12 @@ import argparse
 import numpy as np
 import pinocchio as pin
 
+from ..errors import RobotError
 from ..robots import load_robot
 from .common import robot_options
+
+#: Largest disagreement of the product of exponentials with Pinocchio [m or rad] that is rounding.
+TWIST_TOLERANCE = 1e-6
 
 
 def run(args: argparse.Namespace) -> int:
@@ -30,4 +34,10 @@ def run(args: argparse.Namespace) -> int:
         err = pin.log6(robot.frame_placement(q).actInv(poe_forward(tw.twists, tw.home, q)))
         worst = max(worst, float(np.abs(err.vector).max()))
     print(f"  product of exponentials vs Pinocchio at 100 random configurations: max error {worst:.2e}")
+    if not worst <= TWIST_TOLERANCE:  # NaN included
+        raise RobotError(
+            f"the twists disagree with Pinocchio's kinematics by {worst:.3g} "
+            f"(more than {TWIST_TOLERANCE:g}): "
+            "the chain is not one pincal can model; check the URDF's joint axes and origins"
+        )
     return 0

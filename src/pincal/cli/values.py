@@ -8,24 +8,6 @@ from pathlib import Path
 from typing import Any
 
 
-def whole(text: str, minimum: int, what: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if value < minimum:
-        raise argparse.ArgumentTypeError(f"{what} is {minimum} or more, got {value}")
-    return value
-
-
-def folds(text: str) -> int:
-    return whole(text, 2, "the number of cross-validation folds")
-
-
-def seed(text: str) -> int:
-    return whole(text, 0, "a seed")
-
-
 def payload(text: str) -> Any:
     from ..effects import Payload  # here: --help does not load Pinocchio
 

@@ -1,0 +1,184 @@
+"""Input and output files: inputs read once, outputs written whole or not at all.
+
+Inputs (:func:`read_input_text`): ``-`` is standard input; standard input, a named pipe or
+``/dev/stdin`` can be read only once, so their text is kept and every later read of the same
+name in the process gets it (a CSV's header is read before its table). Anything larger than
+:data:`MAX_INPUT_BYTES` is refused (``/dev/zero`` would never end).
+
+Outputs (:func:`atomic_write`, :func:`atomic_write_many`): only regular files are written. A
+symlink is written through (its target is replaced, the link stays); a folder, a device, a named
+pipe or a socket is refused. Each text goes to a temporary file beside its target, and only when
+every one is complete are they renamed over their targets, so a full disk, a folder that refuses
+the file or Ctrl-C leave the old files (or none) and no partial one. A new file gets the usual
+permissions (0666 less the process umask), a replaced one keeps its own.
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+import stat
+import sys
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+
+from .errors import DataError, OutputError
+
+#: Largest input file read [bytes] (a measurement CSV of a million poses is about 100 MB).
+MAX_INPUT_BYTES = 500_000_000
+#: The name of standard input.
+STDIN = "-"
+
+_read_once: dict[str, str] = {}
+
+
+def read_input_text(path: str | Path, what: str = "data file") -> str:
+    """The text of an input (UTF-8, a byte-order mark dropped); ``-`` is standard input.
+
+    Args:
+        path: the file, ``-``, ``/dev/stdin`` or a named pipe.
+        what: how to name the input in messages.
+
+    Raises:
+        DataError: missing, unreadable, not UTF-8, too large, or a terminal as standard input.
+    """
+    name = str(path)
+    if name in _read_once:
+        return _read_once[name]
+    try:
+        if name == STDIN:
+            data = _read_stdin(what)
+            once = True
+        else:
+            with open(name, "rb") as fh:
+                once = not stat.S_ISREG(os.fstat(fh.fileno()).st_mode)
+                data = fh.read(MAX_INPUT_BYTES + 1)
+    except FileNotFoundError:
+        raise DataError(f"{what} not found: {path}") from None
+    except IsADirectoryError:
+        raise DataError(f"{what} {path} is a folder: give a CSV file") from None
+    except OSError as exc:
+        raise DataError(f"cannot read {what} {path}: {exc.strerror or exc}") from None
+    if len(data) > MAX_INPUT_BYTES:
+        raise DataError(f"{what} {path} is larger than {MAX_INPUT_BYTES // 1_000_000} MB: is it a CSV?")
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise DataError(
+            f"cannot read {what} {path}: not UTF-8 text ({exc.reason} at byte {exc.start})"
+        ) from None
+    if once:
+        _read_once[name] = text
+    return text
+
+
+def _read_stdin(what: str) -> bytes:
+    stream = sys.stdin
+    if stream is None:
+        raise DataError(f"the {what} is '-' but there is no standard input")
+    if stream.isatty():
+        raise DataError(
+            f"the {what} is '-' (standard input), a terminal: pipe the CSV in, e.g. '- < data.csv'"
+        )
+    buffer = getattr(stream, "buffer", None)
+    if buffer is not None:
+        return bytes(buffer.read(MAX_INPUT_BYTES + 1))
+    return stream.read(MAX_INPUT_BYTES + 1).encode("utf-8")
+
+
+def forget_inputs() -> None:
+    """Drop the kept texts of inputs read once (the command line does it when a command ends)."""
+    _read_once.clear()
+
+
+def output_target(path: str | Path) -> Path:
+    """The regular file an output path writes: symlinks followed, anything else refused.
+
+    Raises:
+        OutputError: ``-``, a folder, or a device, named pipe or socket.
+    """
+    if str(path) == STDIN:
+        raise OutputError("'-' as an output: give a file name (pincal writes outputs to files, not stdout)")
+    target = Path(os.path.realpath(path))
+    try:
+        mode = target.stat().st_mode
+    except FileNotFoundError:
+        return target
+    except OSError as exc:
+        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
+    if stat.S_ISDIR(mode):
+        raise OutputError(f"{path} is a folder: give a file name for the output")
+    if not stat.S_ISREG(mode):
+        raise OutputError(
+            f"{path} is not a regular file (a device, a named pipe or a socket): pincal writes outputs "
+            "only to regular files, give a file name"
+        )
+    return target
+
+
+def atomic_write(path: str | Path, text: str | bytes) -> None:
+    """Write ``text`` (UTF-8) or bytes to ``path`` atomically (see the module docstring).
+
+    Raises:
+        OutputError: not a regular file, or the file cannot be written (permissions, full disk).
+    """
+    atomic_write_many([(path, text)])
+
+
+def atomic_write_many(files: Sequence[tuple[str | Path, str | bytes]]) -> None:
+    """Write several files, all or none: each to a temporary file beside it, then every one renamed.
+
+    Raises:
+        OutputError: an output that is not a regular file, or one that cannot be written.
+    """
+    staged: list[tuple[str, Path]] = []
+    current: str | Path = ""
+    try:
+        for current, text in files:
+            target = output_target(current)
+            fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
+            staged.append((tmp, target))
+            try:
+                os.fchmod(fd, _mode(target))
+                _write_all(fd, text.encode("utf-8") if isinstance(text, str) else text)
+            finally:
+                os.close(fd)
+        for tmp, target in staged:
+            os.replace(tmp, target)
+    except OSError as exc:
+        _remove(staged)
+        raise OutputError(f"cannot write {current}: {exc.strerror or exc}{_hint(exc)}") from None
+    except BaseException:
+        _remove(staged)
+        raise
+
+
+def _write_all(fd: int, data: bytes) -> None:
+    """Write every byte (``os.write`` may write fewer than asked)."""
+    view = memoryview(data)
+    while view:
+        view = view[os.write(fd, view) :]
+
+
+def _mode(target: Path) -> int:
+    """Permissions of a replaced file, else 0666 less the umask."""
+    try:
+        return stat.S_IMODE(target.stat().st_mode)
+    except OSError:
+        mask = os.umask(0o022)  # the umask can only be read by setting it: set it back at once
+        os.umask(mask)
+        return 0o666 & ~mask
+
+
+def _remove(staged: list[tuple[str, Path]]) -> None:
+    for tmp, _ in staged:
+        Path(tmp).unlink(missing_ok=True)
+
+
+def _hint(exc: OSError) -> str:
+    if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+        return ": free some space, or write to another disk"
+    if exc.errno in (errno.EACCES, errno.EPERM, errno.EROFS):
+        return ": write to a folder you can write to"
+    return ""
