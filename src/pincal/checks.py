@@ -7,7 +7,10 @@ Each check raises :class:`~pincal.errors.DataError` with what is wrong and how t
 - :func:`check_limits`: joint values inside the URDF limits, within a small tolerance, with a
   hint when the values look like degrees given as radians (or millimetres given as metres);
 - :func:`check_scale`: the measured points spread about as far as the tip does at the same
-  joint values (a factor of 1000 means millimetres given as metres, or the reverse).
+  joint values (a factor of 1000 means millimetres given as metres, or the reverse; a tip that
+  spreads as far with the angles in the other unit means degrees read as radians, or the reverse);
+- :func:`quaternion_columns`: all four quaternion columns or none (``--quaternion-order``);
+- :func:`check_locked`: a joint held by ``--lock`` does not move in its column.
 """
 
 from __future__ import annotations
@@ -15,15 +18,19 @@ from __future__ import annotations
 import difflib
 import re
 from collections.abc import Iterable, Sequence
+from pathlib import Path
 
 import numpy as np
 
 from .data import Dataset
 from .errors import DataError
+from .options import QUATERNION_ORDERS
 from .robots import Robot
 
 LIMIT_TOLERANCE = (np.deg2rad(1.0), 1e-3)  # [rad] revolute, [m] prismatic, beyond the URDF limits
 SCALE_RATIO = 10.0  # measured spread / tip spread beyond which the units are suspect
+LOCK_TOLERANCE = 1e-3  # [rad or m]: a locked joint's column may move this much and count as still
+_QUAT = ("qw", "qx", "qy", "qz")
 _JOINT_LIKE = re.compile(r"^(q|j|theta|joint|axis)[_ ]?\d+$|joint", re.IGNORECASE)
 
 
@@ -112,7 +119,7 @@ def check_limits(robot: Robot, data: Dataset, degrees: bool = False) -> None:
     )
 
 
-def check_scale(robot: Robot, data: Dataset, units: str = "m") -> None:
+def check_scale(robot: Robot, data: Dataset, units: str = "m", degrees: bool = False) -> None:
     """The measured points spread about as far as the nominal tip does at the same joint values.
 
     The instrument's registration and the measured point are unknown, but neither changes the
@@ -123,6 +130,7 @@ def check_scale(robot: Robot, data: Dataset, units: str = "m") -> None:
         robot: the chain.
         data: the poses and measured points [m, as read].
         units: the unit the file was read in (for the hint).
+        degrees: whether the revolute joint values were read as degrees (for the hint).
 
     Raises:
         DataError: the spreads differ by more than :data:`SCALE_RATIO`.
@@ -140,7 +148,14 @@ def check_scale(robot: Robot, data: Dataset, units: str = "m") -> None:
     ratio = measured / tip_spread
     if 1.0 / SCALE_RATIO < ratio < SCALE_RATIO:
         return
-    if ratio >= SCALE_RATIO:
+    angles = _other_angle_unit(robot, data, degrees)
+    if angles is not None and 1.0 / 3.0 < measured / angles < 3.0:
+        hint = (
+            "the joint values look like radians read as degrees: drop --degrees"
+            if degrees
+            else "the joint values look like degrees read as radians: pass --degrees"
+        )
+    elif ratio >= SCALE_RATIO:
         hint = (
             "the values look like millimetres: pass --units mm"
             if units == "m" and 300 < ratio < 3000
@@ -156,6 +171,66 @@ def check_scale(robot: Robot, data: Dataset, units: str = "m") -> None:
         f"the measured points x,y,z spread {measured:.4g} m around their centre (read as {units}), "
         f"but the robot's tip spreads {tip_spread:.3g} m at the same joint values: {hint}"
     )
+
+
+def _other_angle_unit(robot: Robot, data: Dataset, degrees: bool) -> float | None:
+    """The tip's spread [m] with the revolute joint values read in the other angle unit (None
+    without a revolute joint)."""
+    revolute = ~np.asarray(robot.prismatic, dtype=bool)
+    if not revolute.any():
+        return None
+    q = data.q.copy()
+    q[:, revolute] = np.rad2deg(q[:, revolute]) if degrees else np.deg2rad(q[:, revolute])
+    with np.errstate(over="ignore", invalid="ignore"):
+        tips = spread(np.array([robot.frame_placement(row).translation for row in q]))
+    return tips if np.isfinite(tips) and tips > 0 else None
+
+
+def quaternion_columns(path: str | Path, header: Sequence[str], order: str = "wxyz") -> list[str]:
+    """The file's quaternion columns in the order w, x, y, z (none when it has none).
+
+    ``wxyz`` reads each of ``qw,qx,qy,qz`` as its name says; ``xyzw`` reads the four, left to
+    right as the header has them, as x, y, z, w.
+
+    Raises:
+        DataError: some but not all of the four columns (a partial quaternion).
+    """
+    if order not in QUATERNION_ORDERS:
+        raise DataError(f"unknown quaternion order {order!r}: use {' or '.join(QUATERNION_ORDERS)}")
+    present = [c for c in header if c in _QUAT]
+    if not present:
+        return []
+    if len(present) < len(_QUAT):
+        missing = ", ".join(c for c in _QUAT if c not in present)
+        raise DataError(
+            f"{path}: the header has {', '.join(present)} but not {missing}: an orientation needs all "
+            "four quaternion columns qw,qx,qy,qz; add the missing one(s), or rename or remove the others "
+            "for position data"
+        )
+    if order == "xyzw":
+        return [present[3], present[0], present[1], present[2]]
+    return list(_QUAT)
+
+
+def check_locked(path: str | Path, names: Sequence[str], values: np.ndarray, degrees: bool = False) -> None:
+    """Refuse a locked joint (``--lock``) whose column moves: it would be held at its neutral
+    value while the robot moved it.
+
+    Args:
+        path: the data file (for the message).
+        names: the locked joints that have a column.
+        values: their columns as read (rows, len(names)).
+        degrees: the values are degrees (prismatic joints are taken as revolute here).
+    """
+    for k, name in enumerate(names):
+        col = values[:, k]
+        span = float(col.max() - col.min()) if len(col) else 0.0
+        if (np.deg2rad(span) if degrees else span) > LOCK_TOLERANCE:
+            raise DataError(
+                f"{path}: --lock {name}, but its column moves (from {col.min():.6g} to {col.max():.6g}): "
+                f"a locked joint is held at its neutral value, so drop --lock {name} to calibrate "
+                "with its values"
+            )
 
 
 def spread(points: np.ndarray) -> float:

@@ -23,5 +23,10 @@ class IdentifiabilityError(PincalError):
     """The data cannot identify what was asked (too few poses, rank deficiency)."""
 
 
+class ImplausibleError(PincalError):
+    """The result cannot be right (:mod:`pincal.plausibility`): the message names the likely
+    cause and the fix."""
+
+
 class NotSupportedError(PincalError):
     """A requested feature exists in the interface but not (yet) for this input."""

@@ -3,13 +3,23 @@
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
 from ..data import atomic_write
 from ..errors import DataError
 from ..pipeline import calibrate
 from ..report import report_json, summary
 from ..urdf_writer import check_frame_name, sidecar_path, write_corrected_urdf
-from .common import chain, check_outputs, end_progress, fit_options, load_data, progress_line, urdf_path
+from .common import (
+    chain,
+    check_outputs,
+    end_progress,
+    fit_options,
+    load_data,
+    plausible,
+    progress_line,
+    urdf_path,
+)
 
 #: ``--nested`` -> the ``nested`` argument of :func:`pincal.calibrate`.
 NESTED = {"auto": None, "yes": True, "no": False}
@@ -60,11 +70,12 @@ def run(args: argparse.Namespace) -> int:
     )
     end_progress(progress)
     print(summary(cal, data))
-    extra = {}
+    verdict = plausible(cal, data, args)
+    extra: dict[str, Any] = {"plausibility": verdict.to_dict()}
     if args.output is not None:
         urdf, side = write_corrected_urdf(cal, args.output, args.add_frame)
         print(f"corrected URDF written to {urdf}; registration and tool (not in a URDF) to {side}")
-        extra = {"urdf": str(urdf), "sidecar": str(side)}
+        extra.update(urdf=str(urdf), sidecar=str(side))
     if args.report is not None:
         atomic_write(args.report, report_json(cal, data, **extra))
         print(f"report written to {args.report}")
