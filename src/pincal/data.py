@@ -333,7 +333,9 @@ def read_program(
         return q
     if not {"x", "y", "z"} <= header:
         raise DataError(f"{path}: a program needs a column per joint ({', '.join(names)}) or targets x,y,z")
-    quat = ["qw", "qx", "qy", "qz"] if {"qw", "qx", "qy", "qz"} <= header else []
+    from .checks import quaternion_columns  # it imports this module
+
+    quat = quaternion_columns(path, sorted(header))  # all four or none
     values = read_table(path, ["x", "y", "z", *quat], "x,y,z (and optionally qw,qx,qy,qz)")
     rot = np.array([pin.Quaternion(*v[3:]).normalized().matrix() for v in values]) if quat else None
     return Targets(values[:, :3] * UNITS[units], rot)
