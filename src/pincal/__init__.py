@@ -14,7 +14,15 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
-from .errors import DataError, IdentifiabilityError, NotSupportedError, OutputError, PincalError, RobotError
+from .errors import (
+    DataError,
+    IdentifiabilityError,
+    ImplausibleError,
+    NotSupportedError,
+    OutputError,
+    PincalError,
+    RobotError,
+)
 from .options import BUNDLED, MODELS
 
 if TYPE_CHECKING:  # the same names for type checkers; at run time each loads on first use
@@ -38,6 +46,7 @@ if TYPE_CHECKING:  # the same names for type checkers; at run time each loads on
     from .outliers import find_outliers, pose_scores
     from .pipeline import calibrate
     from .planning import Design, Plan, candidate_poses, plan_poses, write_poses
+    from .plausibility import judge_calibration
     from .plots import plot_diagnosis
     from .report import report_dict, report_json, summary
     from .robots import Robot, load_robot
@@ -50,6 +59,7 @@ if TYPE_CHECKING:  # the same names for type checkers; at run time each loads on
     )
     from .simulation import TrueRobot, hide_effect, points_truth, random_truth, simulate, simulate_points
     from .tool import ToolCalibration, calibrate_tool, read_flange_poses
+    from .tool_plausibility import judge_tool
     from .twists import Twists, chain_twists, gao_k, left_jacobian, nominal_twists, poe_forward
     from .ur_yaml import (
         URKinematics,
@@ -59,6 +69,7 @@ if TYPE_CHECKING:  # the same names for type checkers; at run time each loads on
         write_ur_kinematics,
     )
     from .urdf_writer import corrected_urdf, write_corrected_urdf
+    from .verdict import Check, Verdict, robot_size
 
 __version__ = "0.1.0"
 
@@ -108,6 +119,11 @@ _LAZY: dict[str, str] = {
     "find_outliers": "outliers",
     "pose_scores": "outliers",
     "calibrate": "pipeline",
+    "judge_calibration": "plausibility",
+    "judge_tool": "tool_plausibility",
+    "Check": "verdict",
+    "Verdict": "verdict",
+    "robot_size": "verdict",
     "Design": "planning",
     "Plan": "planning",
     "candidate_poses": "planning",
@@ -169,6 +185,7 @@ __all__ = [
     "Extension",
     "Identifiability",
     "IdentifiabilityError",
+    "ImplausibleError",
     "MdhModel",
     "MdhTable",
     "Measurement",
@@ -189,6 +206,8 @@ __all__ = [
     "SelectionStep",
     "Targets",
     "ToolCalibration",
+    "Verdict",
+    "Check",
     "TrueRobot",
     "Twists",
     "URKinematics",
@@ -215,6 +234,8 @@ __all__ = [
     "gao_pairs",
     "hide_effect",
     "joint_jacobian",
+    "judge_calibration",
+    "judge_tool",
     "left_jacobian",
     "load_calibration",
     "load_robot",
@@ -231,6 +252,7 @@ __all__ = [
     "read_flange_poses",
     "read_program",
     "read_ur_kinematics",
+    "robot_size",
     "report_dict",
     "report_json",
     "select_parameters",

@@ -7,7 +7,10 @@ Each check raises :class:`~pincal.errors.DataError` with what is wrong and how t
 - :func:`check_limits`: joint values inside the URDF limits, within a small tolerance, with a
   hint when the values look like degrees given as radians (or millimetres given as metres);
 - :func:`check_scale`: the measured points spread about as far as the tip does at the same
-  joint values (a factor of 1000 means millimetres given as metres, or the reverse).
+  joint values (a factor of 1000 means millimetres given as metres, or the reverse; a tip that
+  spreads as far with the angles in the other unit means degrees read as radians, or the reverse);
+- :func:`quaternion_columns`: all four quaternion columns or none (``--quaternion-order``);
+- :func:`check_locked`: a joint held by ``--lock`` does not move in its column.
 """
 
 from __future__ import annotations
@@ -15,15 +18,19 @@ from __future__ import annotations
 import difflib
 import re
 from collections.abc import Iterable, Sequence
+from pathlib import Path
 
 import numpy as np
 
 from .data import Dataset
 from .errors import DataError
+from .options import QUATERNION_ORDERS
 from .robots import Robot
 
 LIMIT_TOLERANCE = (np.deg2rad(1.0), 1e-3)  # [rad] revolute, [m] prismatic, beyond the URDF limits
 SCALE_RATIO = 10.0  # measured spread / tip spread beyond which the units are suspect
+LOCK_TOLERANCE = 1e-3  # [rad or m]: a locked joint's column may move this much and count as still
+_QUAT = ("qw", "qx", "qy", "qz")
 _JOINT_LIKE = re.compile(r"^(q|j|theta|joint|axis)[_ ]?\d+$|joint", re.IGNORECASE)
 
 
@@ -127,7 +134,7 @@ def check_scale(robot: Robot, data: Dataset, units: str = "m", degrees: bool = F
         robot: the chain.
         data: the poses and measured points [m, as read].
         units: the unit the file was read in (for the hint).
-        degrees: whether the file's revolute values were degrees (for the hint).
+        degrees: whether the revolute joint values were read as degrees (for the hint).
 
     Raises:
         DataError: the spreads differ by more than :data:`SCALE_RATIO`.
@@ -145,8 +152,13 @@ def check_scale(robot: Robot, data: Dataset, units: str = "m", degrees: bool = F
     ratio = measured / tip_spread if tip_spread > 0 else np.inf
     if 1.0 / SCALE_RATIO < ratio < SCALE_RATIO:
         return
-    if degrees and small_angles(robot, data) and _fits_as_radians(robot, data, measured):
-        hint = "the joint values look like radians given with --degrees: drop --degrees"
+    angles = _other_angle_unit(robot, data, degrees)
+    if angles is not None and 1.0 / 3.0 < measured / angles < 3.0:
+        hint = (
+            "the joint values look like radians read as degrees: drop --degrees"
+            if degrees
+            else "the joint values look like degrees read as radians: pass --degrees"
+        )
     elif tip_spread < 1e-3:  # [m] poses alike: the rank check says why
         return
     elif ratio >= SCALE_RATIO:
@@ -167,14 +179,64 @@ def check_scale(robot: Robot, data: Dataset, units: str = "m", degrees: bool = F
     )
 
 
-def _fits_as_radians(robot: Robot, data: Dataset, measured: float) -> bool:
-    """Whether the measured points spread like the tip when the (degree) joint values are read as radians."""
-    q = data.q.copy()
+def _other_angle_unit(robot: Robot, data: Dataset, degrees: bool) -> float | None:
+    """The tip's spread [m] with the revolute joint values read in the other angle unit (None
+    without a revolute joint)."""
     revolute = ~np.asarray(robot.prismatic, dtype=bool)
-    q[:, revolute] = np.rad2deg(q[:, revolute])
-    tips = np.array([robot.frame_placement(qi).translation for qi in q])
-    tip_spread = spread(tips)
-    return bool(tip_spread > 0 and 1.0 / SCALE_RATIO < measured / tip_spread < SCALE_RATIO)
+    if not revolute.any():
+        return None
+    q = data.q.copy()
+    q[:, revolute] = np.rad2deg(q[:, revolute]) if degrees else np.deg2rad(q[:, revolute])
+    with np.errstate(over="ignore", invalid="ignore"):
+        tips = spread(np.array([robot.frame_placement(row).translation for row in q]))
+    return tips if np.isfinite(tips) and tips > 0 else None
+
+
+def quaternion_columns(path: str | Path, header: Sequence[str], order: str = "wxyz") -> list[str]:
+    """The file's quaternion columns in the order w, x, y, z (none when it has none).
+
+    ``wxyz`` reads each of ``qw,qx,qy,qz`` as its name says; ``xyzw`` reads the four, left to
+    right as the header has them, as x, y, z, w.
+
+    Raises:
+        DataError: some but not all of the four columns (a partial quaternion).
+    """
+    if order not in QUATERNION_ORDERS:
+        raise DataError(f"unknown quaternion order {order!r}: use {' or '.join(QUATERNION_ORDERS)}")
+    present = [c for c in header if c in _QUAT]
+    if not present:
+        return []
+    if len(present) < len(_QUAT):
+        missing = ", ".join(c for c in _QUAT if c not in present)
+        raise DataError(
+            f"{path}: the header has {', '.join(present)} but not {missing}: an orientation needs all "
+            "four quaternion columns qw,qx,qy,qz; add the missing one(s), or rename or remove the others "
+            "for position data"
+        )
+    if order == "xyzw":
+        return [present[3], present[0], present[1], present[2]]
+    return list(_QUAT)
+
+
+def check_locked(path: str | Path, names: Sequence[str], values: np.ndarray, degrees: bool = False) -> None:
+    """Refuse a locked joint (``--lock``) whose column moves: it would be held at its neutral
+    value while the robot moved it.
+
+    Args:
+        path: the data file (for the message).
+        names: the locked joints that have a column.
+        values: their columns as read (rows, len(names)).
+        degrees: the values are degrees (prismatic joints are taken as revolute here).
+    """
+    for k, name in enumerate(names):
+        col = values[:, k]
+        span = float(col.max() - col.min()) if len(col) else 0.0
+        if (np.deg2rad(span) if degrees else span) > LOCK_TOLERANCE:
+            raise DataError(
+                f"{path}: --lock {name}, but its column moves (from {col.min():.6g} to {col.max():.6g}): "
+                f"a locked joint is held at its neutral value, so drop --lock {name} to calibrate "
+                "with its values"
+            )
 
 
 def spread(points: np.ndarray) -> float:

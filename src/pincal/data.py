@@ -195,6 +195,8 @@ def read_csv(
     units: str = "m",
     prismatic: Sequence[bool] | None = None,
     measure: str | None = None,
+    quaternion_order: str = "wxyz",
+    locked: Sequence[str] = (),
 ) -> Dataset:
     """Read a measurement CSV (see the module docstring).
 
@@ -206,27 +208,35 @@ def read_csv(
         prismatic: which joints are prismatic (their values take ``units``, not degrees).
         measure: ``points`` reads fixed-point data (a ``point`` column, no ``x,y,z``); the
             default reads it when the file has a ``point`` column and no ``x,y,z``.
+        quaternion_order: ``wxyz``: the columns ``qw,qx,qy,qz`` hold what their names say;
+            ``xyzw``: the four quaternion columns, left to right, hold x, y, z, w.
+        locked: joints held at their neutral value (``--lock``): a column of theirs must not move.
 
     Raises:
-        DataError: the file is missing or malformed.
+        DataError: the file is missing or malformed, holds some but not all of the quaternion
+            columns, or a locked joint's column moves.
     """
     if units not in UNITS:
         raise DataError(f"unknown unit {units!r}: use m or mm")
+    from .checks import check_locked, quaternion_columns  # they import this module
+
     header = csv_columns(path)
+    quat_order = quaternion_columns(path, header, quaternion_order)
     if measure == "points" or (measure is None and "point" in header and "x" not in header):
         from .fixed_points import read_points_csv  # it reads a Dataset: imported here, not above
 
         return read_points_csv(path, joint_names, degrees, units, prismatic)
     required = [*joint_names, "x", "y", "z"]
-    has_quat = all(c in header for c in _QUAT)
-    wanted = [*required, *(_QUAT if has_quat else ())]
+    still = [j for j in locked if j in header and j not in joint_names]
+    wanted = [*required, *quat_order, *still]
     values = read_table(path, wanted, f"every chain joint ({', '.join(joint_names)}) and x,y,z")
     n = len(joint_names)
     q = joint_values(values[:, :n], degrees, units, prismatic)
     points = values[:, n : n + 3] * UNITS[units]
-    quats = values[:, n + 3 : n + 7] if has_quat else None
+    quats = values[:, n + 3 : n + 7] if quat_order else None
     if quats is not None:
         check_quaternions(path, quats)
+    check_locked(path, still, values[:, n + 3 + len(quat_order) :], degrees)
     return Dataset(tuple(joint_names), q, points, quats)
 
 
@@ -305,7 +315,9 @@ def read_program(
         return q
     if not {"x", "y", "z"} <= header:
         raise DataError(f"{path}: a program needs a column per joint ({', '.join(names)}) or targets x,y,z")
-    quat = ["qw", "qx", "qy", "qz"] if {"qw", "qx", "qy", "qz"} <= header else []
+    from .checks import quaternion_columns  # it imports this module
+
+    quat = quaternion_columns(path, sorted(header))  # all four or none
     values = read_table(path, ["x", "y", "z", *quat], "x,y,z (and optionally qw,qx,qy,qz)")
     if quat:
         check_quaternions(path, values[:, 3:])

@@ -27,5 +27,10 @@ class OutputError(PincalError):
     """An output cannot be written: not a regular file, a folder that refuses it, a full disk."""
 
 
+class ImplausibleError(PincalError):
+    """The result cannot be right (:mod:`pincal.plausibility`): the message names the likely
+    cause and the fix."""
+
+
 class NotSupportedError(PincalError):
     """A requested feature exists in the interface but not (yet) for this input."""

@@ -15,6 +15,8 @@ MEASURES = ("position", "pose", "distance", "points")
 LOSSES = ("linear", "soft_l1", "huber", "cauchy")
 #: Length units of data files -> metres.
 UNITS = {"m": 1.0, "mm": 1e-3}
+#: ``--quaternion-order``: what the four quaternion columns hold (w,x,y,z by their names, or x,y,z,w).
+QUATERNION_ORDERS = ("wxyz", "xyzw")
 #: Tool orientation methods (:mod:`pincal.tool`).
 ORIENTATIONS = ("default", "z", "zx")
 #: Outlier threshold: robust standard deviations above the median pose (:mod:`pincal.outliers`).

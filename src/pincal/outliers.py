@@ -45,6 +45,13 @@ def robust_scale(residuals: np.ndarray) -> float:
     return float(1.4826 * np.median(np.abs(residuals)))
 
 
+def far_off(scores: np.ndarray, threshold: float = THRESHOLD) -> np.ndarray:
+    """Which scores (N,) exceed ``median + threshold · 1.4826 · MAD`` (a mask)."""
+    median = float(np.median(scores))
+    mad = float(np.median(np.abs(scores - median)))
+    return scores > median + threshold * 1.4826 * max(mad, 1e-3 * median, 1e-12)
+
+
 def find_outliers(
     problem: Problem,
     theta: np.ndarray,
@@ -68,10 +75,7 @@ def find_outliers(
     f_scale = max(robust_scale(problem.residuals(theta)), 1e-9)  # [m]
     robust = solve(theta, "soft_l1", f_scale)
     scores = pose_scores(problem, robust)
-    median = float(np.median(scores))
-    mad = float(np.median(np.abs(scores - median)))
-    limit = median + threshold * 1.4826 * max(mad, 1e-3 * median, 1e-12)
-    bad = np.flatnonzero(scores > limit)
+    bad = np.flatnonzero(far_off(scores, threshold))
     bad = bad[np.argsort(-scores[bad])]
     if len(bad) > MAX_FRACTION * n:
         return np.empty(0, dtype=int), scores

@@ -147,13 +147,19 @@ def set_up(
         point_distances=tuple(point_distances),
     )
     problem = Problem(mdl, initial_measurement(robot, data, measurement), data, extension)
+    return Setup(problem, natural_scale(problem), tool_se3)
+
+
+def natural_scale(problem: Problem) -> np.ndarray:
+    """Natural size of each unknown of a problem (see :class:`Setup`)."""
+    robot, data, extension = problem.model.robot, problem.data, problem.extension
     length = workspace_length(data, robot)
     scale = parameter_scale(problem.units, length)
     if extension is not None:  # natural size of an effect: moving the joint by 1 mm at the lever arm
         rms = np.sqrt(np.mean(problem.regressors**2, axis=0))
         lever = 1.0 if robot.prismatic[extension.index] else length
-        scale[mdl.n_params : problem.n_model] = 1.0 / (lever * np.where(rms > 0, rms, 1.0))
-    return Setup(problem, scale, tool_se3)
+        scale[problem.model.n_params : problem.n_model] = 1.0 / (lever * np.where(rms > 0, rms, 1.0))
+    return scale
 
 
 def solve(

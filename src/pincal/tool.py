@@ -278,6 +278,7 @@ def read_flange_poses(
     rename: dict[str, str] | None = None,
     robot: Robot | None = None,
     degrees: bool = False,
+    quaternion_order: str = "wxyz",
 ) -> tuple[np.ndarray, np.ndarray]:
     """Flange poses from a CSV: ``x,y,z,a,b,c`` (degrees, R = Rz(a) Ry(b) Rx(c)), ``x,y,z,qw,qx,qy,qz``,
     or, with ``robot``, joint columns turned into flange poses by its forward kinematics.
@@ -288,6 +289,8 @@ def read_flange_poses(
         rename: map from the contract's column names to the file's (``{"x": "X_mm", ...}``).
         robot: compute the flange poses from joint columns with this robot's tip frame.
         degrees: with ``robot``, revolute joint values are in degrees.
+        quaternion_order: ``wxyz``: ``qw,qx,qy,qz`` hold what their names say; ``xyzw``: the four
+            quaternion columns, left to right, hold x, y, z, w.
 
     Returns:
         Rotations (n, 3, 3) and positions (n, 3) in ``units``.
@@ -302,10 +305,21 @@ def read_flange_poses(
         q[:, prismatic] *= UNITS[units]
         poses = [robot.frame_placement(qi) for qi in q]
         return np.array([m.rotation for m in poses]), np.array([m.translation for m in poses]) / UNITS[units]
-    header = set(csv_columns(path))
+    columns = csv_columns(path)
+    header = set(columns)
     names = {(rename or {}).get(c, c) for c in ("qw", "qx", "qy", "qz")}
+    if names & header and not names <= header:
+        raise DataError(
+            f"{path}: the header has {', '.join(sorted(names & header))} but not "
+            f"{', '.join(sorted(names - header))}: a quaternion needs all four columns qw,qx,qy,qz"
+        )
     if names <= header:
-        values = read_table(path, ["x", "y", "z", "qw", "qx", "qy", "qz"], "x,y,z,qw,qx,qy,qz", rename)
+        quat = ["qw", "qx", "qy", "qz"]
+        if quaternion_order == "xyzw":  # the four columns left to right are x, y, z, w
+            mine = {(rename or {}).get(c, c): c for c in quat}
+            ordered = [mine[c] for c in columns if c in mine]
+            quat = [ordered[3], *ordered[:3]]
+        values = read_table(path, ["x", "y", "z", *quat], "x,y,z,qw,qx,qy,qz", rename)
         check_quaternions(path, values[:, 3:])
         quats = values[:, 3:] / np.linalg.norm(values[:, 3:], axis=1, keepdims=True)
         rotations = np.array([pin.Quaternion(*qt).toRotationMatrix() for qt in quats])

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import Any
 
 from ..errors import DataError
 from ..files import STDIN, atomic_write_many
@@ -17,6 +18,7 @@ from .common import (
     end_progress,
     fit_options,
     load_data,
+    plausible,
     progress_line,
     ur_yaml_output,
     urdf_path,
@@ -77,16 +79,17 @@ def run(args: argparse.Namespace) -> int:
     )
     end_progress(progress)
     print(summary(cal, data))
+    verdict = plausible(cal, data, args)
     files: list[tuple[str | Path, str | bytes]] = []
-    extra: dict[str, str] = {}
+    extra: dict[str, Any] = {"plausibility": verdict.to_dict()}
     if ur_yaml_output(args):
         source = None if args.kinematics is None else read_ur_kinematics(args.kinematics).calibration_hash
         yaml, side = write_ur_kinematics(cal, args.output, source)
         print(f"UR kinematics YAML written to {yaml}; registration and tool (not in it) to {side}")
-        extra = {"ur_kinematics": str(yaml), "sidecar": str(side)}
+        extra.update(ur_kinematics=str(yaml), sidecar=str(side))
     elif args.output is not None:
         files = list(corrected_files(cal, args.output, args.add_frame))
-        extra = {"urdf": str(files[0][0]), "sidecar": str(files[1][0])}
+        extra.update(urdf=str(files[0][0]), sidecar=str(files[1][0]))
     if args.report is not None:
         files.append((args.report, report_json(cal, data, **extra)))
     atomic_write_many(files)  # every output or none

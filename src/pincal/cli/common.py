@@ -8,16 +8,20 @@ import os
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pinocchio as pin
 
 from ..checks import check_columns, check_limits, check_scale, small_angles
 from ..data import UNITS, Dataset, csv_columns, read_csv
-from ..errors import DataError, OutputError
+from ..errors import DataError, ImplausibleError, OutputError
 from ..files import STDIN, output_target
 from ..fixed_points import parse_point_distances, read_socket_folder
+from ..plausibility import Verdict, judge_calibration
 from ..robots import BUNDLED, Robot, bundled_urdf, load_robot
+
+if TYPE_CHECKING:
+    from ..calibration import Calibration
 
 
 def urdf_path(robot: str | None) -> Path | None:
@@ -128,6 +132,8 @@ def load_data(path: Path, robot: Robot, args: argparse.Namespace) -> Dataset:
             units=args.units,
             prismatic=robot.prismatic,
             measure=args.measure,
+            quaternion_order=args.quaternion_order,
+            locked=args.lock,
         )
     check_limits(robot, data, args.degrees)
     if data.labels is None:  # fixed points have no measured positions to compare
@@ -139,6 +145,18 @@ def load_data(path: Path, robot: Robot, args: argparse.Namespace) -> Dataset:
             file=sys.stderr,
         )
     return data
+
+
+def plausible(cal: Calibration, data: Dataset, args: argparse.Namespace) -> Verdict:
+    """The plausibility verdict on a fit (:mod:`pincal.plausibility`): raised as an error when
+    the fit cannot be right, or said as a warning with ``--accept-implausible``."""
+    order = args.quaternion_order
+    verdict = judge_calibration(cal, data, degrees=args.degrees, quaternion_order=order, loss=args.loss)
+    if not verdict.plausible:
+        if not args.accept_implausible:
+            raise ImplausibleError(verdict.message())
+        print(f"pincal: warning: {verdict.warning()}", file=sys.stderr)
+    return verdict
 
 
 def progress_line(what: str) -> Callable[[int, int, str], None] | None:

@@ -11,7 +11,16 @@ from ..data import atomic_write
 from ..errors import DataError
 from ..pipeline import calibrate
 from ..selection import select_parameters
-from .common import chain, check_outputs, end_progress, fit_options, load_data, progress_line, urdf_path
+from .common import (
+    chain,
+    check_outputs,
+    end_progress,
+    fit_options,
+    load_data,
+    plausible,
+    progress_line,
+    urdf_path,
+)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -55,12 +64,14 @@ def run(args: argparse.Namespace) -> int:
     for cand in result.candidates[:5]:
         print(f"  {cand.extension.label:42s} CV RMS {cand.cv_rms_mm:.4f} mm  F-test p = {cand.p_value:.2g}")
     print(result.summary())
+    verdict = plausible(result.baseline, data, args)
     if args.plots is not None and result.cause is not None and result.baseline.measurement.kind != "distance":
         plot = args.plots / f"diagnose_{result.cause.extension.effect}.png"
         check_outputs(args, [plot], {"data file": args.data, "input URDF": urdf_path(args.robot)})
         path = plot_diagnosis(result, data, plot)
         print(f"plot written to {path}")
     if args.json is not None:
-        atomic_write(args.json, json.dumps(result.to_dict(), indent=2) + "\n")
+        out = {**result.to_dict(), "plausibility": verdict.to_dict()}
+        atomic_write(args.json, json.dumps(out, indent=2) + "\n")
         print(f"written to {args.json}")
     return 0

@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 from ..errors import PincalError
-from ..options import BUNDLED, LOSSES, MEASURES, MODELS, ORIENTATIONS, THRESHOLD, UNITS
+from ..options import BUNDLED, LOSSES, MEASURES, MODELS, ORIENTATIONS, QUATERNION_ORDERS, THRESHOLD, UNITS
 from .numeric import count, folds, fraction, height, reach, rotation_weight, seed, sigmas, threads
 from .values import mapping, name_list, parameters, payload, vector3, vectors3
 
@@ -121,6 +121,7 @@ def _add_tcp(sub: Any) -> None:
     tcp.add_argument("--tip", help="with --robot: the flange frame (default: the robot's tip)")
     tcp.add_argument("--degrees", action="store_true", help="with --robot: joint values in degrees")
     _add_robot_options(tcp, "--robot")
+    _add_plausibility_options(tcp)
     _add_force(tcp)
 
 
@@ -275,6 +276,22 @@ def _add_data_options(cmd: argparse.ArgumentParser) -> None:
         type=rotation_weight,
         default=0.1,
         help="weight of orientation residuals for pose data [m/rad] (default 0.1: 1 mrad ~ 0.1 mm)",
+    )
+    _add_plausibility_options(cmd)
+
+
+def _add_plausibility_options(cmd: argparse.ArgumentParser) -> None:
+    cmd.add_argument(
+        "--quaternion-order",
+        choices=QUATERNION_ORDERS,
+        default="wxyz",
+        help="wxyz (default): the columns qw,qx,qy,qz hold what their names say; xyzw: the four "
+        "quaternion columns, left to right, hold x, y, z, w (data exported as x,y,z,w)",
+    )
+    cmd.add_argument(
+        "--accept-implausible",
+        action="store_true",
+        help="keep a result that no rigid arm can be (a warning instead of an error)",
     )
 
 

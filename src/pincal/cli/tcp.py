@@ -9,8 +9,10 @@ import sys
 import numpy as np
 
 from ..data import UNITS, atomic_write
+from ..errors import ImplausibleError
 from ..robots import load_robot
 from ..tool import calibrate_tool, read_flange_poses
+from ..tool_plausibility import judge_tool
 from .common import check_outputs, robot_options, urdf_path
 
 
@@ -18,7 +20,9 @@ def run(args: argparse.Namespace) -> int:
     """Run the command; 0 on success."""
     check_outputs(args, [args.json], {"poses file": args.poses, "input URDF": urdf_path(args.robot)})
     robot = load_robot(args.robot, tip=args.tip, **robot_options(args)) if args.robot else None
-    rotations, positions = read_flange_poses(args.poses, args.units, args.columns, robot, args.degrees)
+    rotations, positions = read_flange_poses(
+        args.poses, args.units, args.columns, robot, args.degrees, args.quaternion_order
+    )
     tool = calibrate_tool(rotations, positions, args.orientation, scale=1.0 / UNITS[args.units])
     u = args.units
     print(f"TCP in the flange frame: ({', '.join(f'{v:.4f}' for v in tool.tcp)}) {u}")
@@ -33,6 +37,11 @@ def run(args: argparse.Namespace) -> int:
         print("  " + " ".join(f"{v:9.5f}" for v in line))
     for warning in tool.warnings:
         print(f"pincal: warning: {warning}", file=sys.stderr)
+    verdict = judge_tool(tool, rotations, positions, args.orientation, robot, 1.0 / UNITS[args.units], u)
+    if not verdict.plausible:
+        if not args.accept_implausible:
+            raise ImplausibleError(verdict.message())
+        print(f"pincal: warning: {verdict.warning()}", file=sys.stderr)
     if args.json is not None:
         result = {
             "tcp": tool.tcp.tolist(),
@@ -46,6 +55,7 @@ def run(args: argparse.Namespace) -> int:
             "condition_number": tool.condition_number,
             "orientation": args.orientation,
             "warnings": list(tool.warnings),
+            "plausibility": verdict.to_dict(),
         }
         atomic_write(args.json, json.dumps(result, indent=2) + "\n")
         print(f"written to {args.json}")
