@@ -117,3 +117,15 @@ def check_urdf() -> Callable[[bytes | Path], None]:
         assert error is None, error
 
     return check
+
+
+@pytest.fixture(scope="session")
+def ur5_csv(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """30 simulated UR5 poses (radians, metres) as a measurement CSV."""
+    import pincal
+
+    robot = pincal.load_robot("ur5")
+    _, fit, _ = pincal.simulate(robot, 30, 5, seed=0)
+    path = tmp_path_factory.mktemp("data") / "data.csv"
+    pincal.write_csv(path, fit)
+    return path

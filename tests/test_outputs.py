@@ -27,13 +27,9 @@ from pincal.cli import main
 
 
 @pytest.fixture(scope="module")
-def data(tmp_path_factory: pytest.TempPathFactory) -> Path:
+def data(ur5_csv: Path) -> Path:
     """30 simulated UR5 poses (radians, metres)."""
-    robot = pincal.load_robot("ur5")
-    _, fit, _ = pincal.simulate(robot, 30, 5, seed=0)
-    path = tmp_path_factory.mktemp("data") / "data.csv"
-    pincal.write_csv(path, fit)
-    return path
+    return ur5_csv
 
 
 def _run(capfd: pytest.CaptureFixture[str], *args: object) -> tuple[int, str, str]:
@@ -182,8 +178,8 @@ def test_a_full_disk_leaves_no_partial_file(
     assert code == 2
     _one_line(err, "No space left", "free some space")
     _unchanged(tmp_path, before)
-    # A single output (tcp's JSON) too.
-    code, _, err = _run(capfd, "tcp", "--robot", "ur5", data, "--json", report, "--force")
+    # A single output (plan's poses) too.
+    code, _, err = _run(capfd, "plan", "ur5", "--poses", "10", "--candidates", "100", "-o", report, "--force")
     assert code == 2
     _one_line(err, "No space left")
     _unchanged(tmp_path, before)

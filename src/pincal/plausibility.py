@@ -199,7 +199,10 @@ def _robust_scores(cal: Calibration, problem: Problem) -> np.ndarray:
 def _model_checks(cal: Calibration, problem: Problem, size: float, loss: str) -> Iterator[Check]:
     """``before``, ``correction``, ``gain`` and ``tool``."""
     weight = cal.measurement.rotation_weight
-    before = score_mm(cal.train_before, weight) * 1e-3  # [m]
+    before = score_mm(cal.train_before, weight) * 1e-3  # [m] as the fit weighs it (for the gain)
+    # against the size, an orientation error counts by what it moves at the robot's reach,
+    # whatever --rotation-weight the fit used
+    reach_before = score_mm(cal.train_before, size) * 1e-3  # [m]
     m = cal.measurement
     fitted = [
         name
@@ -210,11 +213,11 @@ def _model_checks(cal: Calibration, problem: Problem, size: float, loss: str) ->
     what = "distances" if m.kind == "distance" else "data"
     yield Check(
         "before",
-        before / size,
+        reach_before / size,
         BEFORE,
         "ratio",
         f"the nominal robot misses the {what} by {err_text(cal.train_before)}{how}, "
-        f"{share_text(before, size)}",
+        f"{share_text(reach_before, size)}",
     )
     after, nominal = _points(problem, cal.theta), _points(problem, cal.nominal_theta)
     fit = kabsch(nominal, after)  # a motion of the whole set-up is no correction (gauges)
