@@ -28,6 +28,12 @@ from .options import QUATERNION_ORDERS
 from .robots import Robot
 
 LIMIT_TOLERANCE = (np.deg2rad(1.0), 1e-3)  # [rad] revolute, [m] prismatic, beyond the URDF limits
+#: Beyond the tolerance but within this [rad, m], a joint value is kept with a warning (a URDF's
+#: limits are often a controller's soft limits, which a measured pose can pass).
+LIMIT_SLACK = (np.deg2rad(3.0), 3e-3)
+#: A revolute joint past its limits in this share of the rows or more is kept with a warning
+#: however far (within a turn): its URDF limits are too tight, as MUKCa's Gen3 lite joint_6.
+SYSTEMATIC = 0.1
 SCALE_RATIO = 10.0  # measured spread / tip spread beyond which the units are suspect
 LOCK_TOLERANCE = 1e-3  # [rad or m]: a locked joint's column may move this much and count as still
 _QUAT = ("qw", "qx", "qy", "qz")
@@ -73,43 +79,55 @@ def _looks_like_joint(column: str, known: set[str]) -> bool:
     return bool(_JOINT_LIKE.search(column)) or bool(difflib.get_close_matches(column, known, n=1, cutoff=0.8))
 
 
-def check_limits(robot: Robot, data: Dataset, degrees: bool = False) -> None:
-    """Joint values within the URDF limits, give or take :data:`LIMIT_TOLERANCE`.
+def check_limits(robot: Robot, data: Dataset, degrees: bool = False) -> int:
+    """Joint values within the URDF limits, give or take :data:`LIMIT_TOLERANCE`; up to
+    :data:`LIMIT_SLACK` beyond, or a revolute joint past them in :data:`SYSTEMATIC` of the rows
+    (within a turn), is kept and counted for a warning.
 
     Args:
         robot: the chain and its limits.
         data: the poses (radians and metres, as read).
         degrees: whether the file's revolute values were degrees (for the hint).
 
+    Returns:
+        How many joint values are beyond the limits and kept (worth a warning).
+
     Raises:
         DataError: the first joint whose values leave its limits, with the row and a hint.
     """
     tol = np.where(robot.prismatic, LIMIT_TOLERANCE[1], LIMIT_TOLERANCE[0])
-    below = data.q < robot.lower - tol
-    above = data.q > robot.upper + tol
-    bad = below | above
+    slack = np.where(robot.prismatic, LIMIT_SLACK[1], LIMIT_SLACK[0])
+    beyond = (data.q < robot.lower - tol) | (data.q > robot.upper + tol)
+    bad = (data.q < robot.lower - slack) | (data.q > robot.upper + slack)
+    turn = ~np.asarray(robot.prismatic) & (np.abs(data.q) <= 2 * np.pi).all(axis=0)
+    systematic = turn & (beyond.mean(axis=0) >= SYSTEMATIC)
+    bad &= ~systematic
     if not bad.any():
-        return
+        return int(beyond.sum())
     joint = int(np.flatnonzero(bad.any(axis=0))[0])
     col = data.q[:, joint]
     first = int(np.flatnonzero(bad[:, joint])[0])
     unit = "m" if robot.prismatic[joint] else "rad"
     lo, hi = robot.lower[joint], robot.upper[joint]
-    hint = "check the column and the URDF's limits"
-    if robot.prismatic[joint]:
-        if np.all((col * 1e-3 >= lo - tol[joint]) & (col * 1e-3 <= hi + tol[joint])):
-            hint = "the values look like millimetres: pass --units mm"
-    elif (
-        not degrees
-        and np.abs(col).max() > 2 * np.pi + tol[joint]  # no angle in radians is that large
-        and np.all((np.deg2rad(col) >= lo - tol[joint]) & (np.deg2rad(col) <= hi + tol[joint]))
-    ):
-        hint = "the values look like degrees given as radians: pass --degrees"
+    hint = _unit_hint(robot, data, degrees, tol, bad) or "check the column and the URDF's limits"
     raise DataError(
         f"data row {int(data.row_numbers[first])}, column {robot.joint_names[joint]}: "
         f"{col[first]:.6g} {unit} is outside the URDF limits [{lo:.4g}, {hi:.4g}] {unit} "
         f"({int(bad[:, joint].sum())} of {len(col)} rows are): {hint}"
     )
+
+
+def _unit_hint(robot: Robot, data: Dataset, degrees: bool, tol: np.ndarray, bad: np.ndarray) -> str | None:
+    """What unit would put the first joint outside its limits inside them, if one does."""
+    joint = int(np.flatnonzero(bad.any(axis=0))[0])
+    col, lo, hi = data.q[:, joint], robot.lower[joint] - tol[joint], robot.upper[joint] + tol[joint]
+    if robot.prismatic[joint]:
+        inside = np.all((col * 1e-3 >= lo) & (col * 1e-3 <= hi))
+        return "the values look like millimetres: pass --units mm" if inside else None
+    too_large = np.abs(col).max() > 2 * np.pi + tol[joint]  # no angle in radians is that large
+    if not degrees and too_large and np.all((np.deg2rad(col) >= lo) & (np.deg2rad(col) <= hi)):
+        return "the values look like degrees given as radians: pass --degrees"
+    return None
 
 
 def small_angles(robot: Robot, data: Dataset) -> bool:

@@ -33,7 +33,7 @@ from .effects import Extension
 from .evaluation import ErrorStats
 from .fixed_points import blind_jacobian
 from .identifiability import RCOND
-from .measurements import Problem, all_pairs
+from .measurements import Problem
 from .robots import Robot
 from .solver import SETUP_KEYS, Setup, register, set_up
 from .threads import limited
@@ -128,9 +128,9 @@ def _groups(problem: Problem, folds: int | None, seed: int) -> list[np.ndarray]:
     """Residual rows of each held-out group (a pose, or a fold of poses)."""
     n_poses = len(problem.data)
     held = [np.array([i]) for i in range(n_poses)] if folds is None else fold_indices(n_poses, folds, seed)
-    if problem.measurement.kind == "distance":
-        pairs = all_pairs(n_poses)
-        return [np.flatnonzero(np.isin(pairs, h).any(axis=1)) for h in held]
+    if problem.measurement.kind == "distance":  # the pairs the data has (all, Gao's or given)
+        groups = [np.flatnonzero(np.isin(problem.pairs, h).any(axis=1)) for h in held]
+        return [g for g in groups if len(g)]
     rows = problem.row_poses()
     return [np.flatnonzero(np.isin(rows, h)) for h in held]
 

@@ -135,7 +135,13 @@ def load_data(path: Path, robot: Robot, args: argparse.Namespace) -> Dataset:
             quaternion_order=args.quaternion_order,
             locked=args.lock,
         )
-    check_limits(robot, data, args.degrees)
+    beyond = check_limits(robot, data, args.degrees)
+    if beyond:
+        print(
+            f"pincal: warning: {path}: {beyond} joint value(s) beyond the URDF limits, kept as measured "
+            "(are the limits too tight?)",
+            file=sys.stderr,
+        )
     if data.labels is None:  # fixed points have no measured positions to compare
         check_scale(robot, data, args.units, args.degrees)
     elif args.degrees and small_angles(robot, data):
