@@ -294,6 +294,17 @@ class Targets:
         return pin.SE3(np.eye(3) if self.rotations is None else self.rotations[i], self.positions[i])
 
 
+def read_joints(path: str | Path, robot: Robot, degrees: bool = False, units: str = "m") -> np.ndarray:
+    """Joint values (N, n) [rad or m] from a CSV with a column per chain joint (revolute ones in
+    radians, or degrees; prismatic ones in ``units``).
+
+    Raises:
+        DataError: missing file or columns, non-numeric cells.
+    """
+    values = read_table(path, robot.joint_names, f"every chain joint ({', '.join(robot.joint_names)})")
+    return joint_values(values, degrees, units, robot.prismatic)
+
+
 def read_program(
     path: str | Path, robot: Robot, degrees: bool = False, units: str = "m"
 ) -> np.ndarray | Targets:
@@ -308,11 +319,7 @@ def read_program(
         raise DataError(f"unknown unit {units!r}: use m or mm")
     header, names = set(csv_columns(path)), robot.joint_names
     if set(names) <= header:
-        q = read_table(path, names, f"every chain joint ({', '.join(names)})")
-        prism = np.array(robot.prismatic)
-        q[:, ~prism] = np.deg2rad(q[:, ~prism]) if degrees else q[:, ~prism]
-        q[:, prism] *= UNITS[units]
-        return q
+        return read_joints(path, robot, degrees, units)
     if not {"x", "y", "z"} <= header:
         raise DataError(f"{path}: a program needs a column per joint ({', '.join(names)}) or targets x,y,z")
     from .checks import quaternion_columns  # it imports this module

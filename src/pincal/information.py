@@ -51,7 +51,7 @@ class Information:
 
     Attributes:
         names, units: every unknown of the fit; ``free`` marks the identifiable ones (the most
-            any hypothesis identifies), ``guess`` is that hypothesis' point [m].
+            any hypothesis identifies); ``best`` is that hypothesis, ``guess`` its point [m].
         rows: per hypothesis, (M, r, P) rows of each candidate on the identifiable unknowns.
         tips: per hypothesis, (M, 3) the measured point at each candidate [m] (base frame).
         priors: per hypothesis, (P, P) the information before any pose (a ridge, known distances).
@@ -103,6 +103,7 @@ class Information:
             for r in raws
         ]
         best = int(np.argmax([free.sum() for free in sets]))
+        self.best = best
         self.free, self.guess = sets[best], tools[best]
         self.rows = [self.whiten(r[0]) for r in raws]
         ridge = 1e-8 * float(np.mean([np.einsum("mrp,mrp->", g, g) / len(g) for g in self.rows]))

@@ -207,7 +207,7 @@ def plan_poses(
     names = tuple(n for n, f in zip(info.names, info.free) if f)
     units = tuple(u for u, f in zip(info.units, info.free) if f)
     at = (None, None) if labels is None else (labels[chosen], labels[:n_poses])
-    w = info.task_weights(np.atleast_2d(task), [info.guess])[0]
+    w = weights[info.best]  # the predictions' hypothesis, whose weights are already made
     planned, random = _design(info, cand[chosen], at[0], w), _design(info, cand[:n_poses], at[1], w)
     chosen_ = np.array(chosen)
     return Plan(robot, model, measure, criterion, names, units, cand, chosen_, planned, random, at[0])

@@ -3,14 +3,11 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from ..data import UNITS, joint_values, read_table
+from ..data import UNITS, read_joints
 from ..errors import DataError
-from ..robots import Robot, load_robot
+from ..robots import load_robot
 from .common import check_outputs, robot_options, urdf_path
 
 
@@ -53,8 +50,3 @@ def run(args: argparse.Namespace) -> int:
     print(f"written to {args.output}")
     return 0
 
-
-def read_joints(path: Path, robot: Robot, degrees: bool) -> np.ndarray:
-    """The joint columns of a CSV (radians, or degrees with ``degrees``; prismatic in metres)."""
-    values = read_table(path, robot.joint_names, "a column per joint: " + ",".join(robot.joint_names))
-    return joint_values(values, degrees, "m", robot.prismatic)
