@@ -1,7 +1,8 @@
 """The ``pincal`` command line: :func:`main` and one module per command.
 
-Exit codes: 0 success; 2 unusable input, with one ``pincal: error: ...`` line on stderr; 130
-interrupted (Ctrl-C), with one such line and no partial output; 141 standard output closed early
+Exit codes: 0 success, its warnings (``pincal: warning: ...``) said at the end; 2 unusable
+input, with one ``pincal: error: ...`` line on stderr and nothing else; 130 interrupted
+(Ctrl-C), with one such line and no partial output; 141 standard output closed early
 (``| head``), quietly; 1 a bug.
 """
 
@@ -28,7 +29,10 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         command = importlib.import_module(f"{__name__}.{args.command}")  # one module per command
         with blas_threads(args.threads):
-            return int(command.run(args))
+            code = int(command.run(args))
+        for warning in getattr(args, "warnings", []):  # kept till now: a failing run says one line
+            print(f"pincal: warning: {warning}", file=sys.stderr)
+        return code
     except PincalError as exc:
         return _error(str(exc), 2)
     except KeyboardInterrupt:

@@ -118,6 +118,12 @@ def fit_options(args: argparse.Namespace) -> dict[str, Any]:
     }
 
 
+def warn(args: argparse.Namespace, text: str) -> None:
+    """Keep a ``pincal: warning:`` for the end of the command: :func:`pincal.cli.main` says the
+    warnings of a command that succeeds; one that fails says its one error line alone."""
+    args.__dict__.setdefault("warnings", []).append(text)
+
+
 def load_data(path: Path, robot: Robot, args: argparse.Namespace) -> Dataset:
     """Read a measurement CSV and check its joint values and units against the robot."""
     if path.is_dir():
@@ -137,18 +143,15 @@ def load_data(path: Path, robot: Robot, args: argparse.Namespace) -> Dataset:
         )
     beyond = check_limits(robot, data, args.degrees)
     if beyond:
-        print(
-            f"pincal: warning: {path}: {beyond} joint value(s) beyond the URDF limits, kept as measured "
-            "(are the limits too tight?)",
-            file=sys.stderr,
-        )
+        limits = "kept as measured (are the limits too tight?)"
+        warn(args, f"{path}: {beyond} joint value(s) beyond the URDF limits, {limits}")
     if data.labels is None:  # fixed points have no measured positions to compare
         check_scale(robot, data, args.units, args.degrees)
     elif args.degrees and small_angles(robot, data):
-        print(
-            f"pincal: warning: {path}: with --degrees every revolute joint value is within ±6.3 degrees: "
+        warn(
+            args,
+            f"{path}: with --degrees every revolute joint value is within ±6.3 degrees: "
             "if the file holds radians, drop --degrees",
-            file=sys.stderr,
         )
     return data
 
@@ -161,7 +164,7 @@ def plausible(cal: Calibration, data: Dataset, args: argparse.Namespace) -> Verd
     if not verdict.plausible:
         if not args.accept_implausible:
             raise ImplausibleError(verdict.message())
-        print(f"pincal: warning: {verdict.warning()}", file=sys.stderr)
+        warn(args, verdict.warning())
     return verdict
 
 

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 
 import numpy as np
 
@@ -13,7 +12,7 @@ from ..errors import ImplausibleError
 from ..robots import load_robot
 from ..tool import calibrate_tool, read_flange_poses
 from ..tool_plausibility import judge_tool
-from .common import check_outputs, robot_options, urdf_path
+from .common import check_outputs, robot_options, urdf_path, warn
 
 
 def run(args: argparse.Namespace) -> int:
@@ -36,12 +35,12 @@ def run(args: argparse.Namespace) -> int:
     for line in tool.rotation:
         print("  " + " ".join(f"{v:9.5f}" for v in line))
     for warning in tool.warnings:
-        print(f"pincal: warning: {warning}", file=sys.stderr)
+        warn(args, warning)
     verdict = judge_tool(tool, rotations, positions, args.orientation, robot, 1.0 / UNITS[args.units], u)
     if not verdict.plausible:
         if not args.accept_implausible:
             raise ImplausibleError(verdict.message())
-        print(f"pincal: warning: {verdict.warning()}", file=sys.stderr)
+        warn(args, verdict.warning())
     if args.json is not None:
         result = {
             "tcp": tool.tcp.tolist(),
