@@ -285,15 +285,18 @@ def test_single_joint_beyond_limit_is_not_called_degrees(
 def test_joints_past_tight_limits_are_kept_with_a_warning(
     capfd: pytest.CaptureFixture[str], sim: Sim, tmp_path: Path
 ) -> None:
-    """A value 2 deg past a limit (a soft limit passed), or a joint past its limits in many rows
-    (limits too tight, as MUKCa's Gen3 lite), is kept: exit 0 and one warning with the count."""
+    """A value 2 deg past a limit (a soft limit passed), a joint past its limits in two rows by a
+    few degrees or in many rows (limits too tight, as MUKCa's Gen3 lite), is kept: exit 0 and one
+    warning with the count."""
     k = int(np.argmax(sim.fit.q[:, 2]))
     once = set_cell(k + 1, "elbow_joint", repr(float(np.pi + np.deg2rad(2.0))))(list(sim.lines))
+    twice = set_cell(k + 1, "elbow_joint", repr(float(np.pi + np.deg2rad(4.0))))(list(sim.lines))
+    twice = set_cell(1 if k else 2, "elbow_joint", repr(float(-np.pi - np.deg2rad(3.5))))(twice)
     many = list(sim.lines)
     rows = range(1, 1 + len(many) // 5)  # a fifth of the rows, 20 deg past
     for row in rows:
         many = set_cell(row, "elbow_joint", repr(float(np.pi + np.deg2rad(20.0))))(many)
-    for lines, count in ((once, 1), (many, len(rows))):
+    for lines, count in ((once, 1), (twice, 2), (many, len(rows))):
         data = _write(tmp_path / "data.csv", lines)
         run = _run(capfd, "calibrate", "ur5", data, "--model", "offsets", "--accept-implausible")
         assert run.code == 0, run.err

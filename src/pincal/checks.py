@@ -34,6 +34,10 @@ LIMIT_SLACK = (np.deg2rad(3.0), 3e-3)
 #: A revolute joint past its limits in this share of the rows or more is kept with a warning
 #: however far (within a turn): its URDF limits are too tight, as MUKCa's Gen3 lite joint_6.
 SYSTEMATIC = 0.1
+#: A revolute joint past its limits in two rows or more, none by more than this [rad], is kept
+#: with a warning too: one mistyped value is a lone row, limits a little too tight show again
+#: (MUKCa's Gen3 lite: joint_6 3.3 deg past in 2 of 37 rows of one placement).
+REPEATED_SLACK = np.deg2rad(10.0)
 SCALE_RATIO = 10.0  # measured spread / tip spread beyond which the units are suspect
 LOCK_TOLERANCE = 1e-3  # [rad or m]: a locked joint's column may move this much and count as still
 _QUAT = ("qw", "qx", "qy", "qz")
@@ -82,7 +86,8 @@ def _looks_like_joint(column: str, known: set[str]) -> bool:
 def check_limits(robot: Robot, data: Dataset, degrees: bool = False) -> int:
     """Joint values within the URDF limits, give or take :data:`LIMIT_TOLERANCE`; up to
     :data:`LIMIT_SLACK` beyond, or a revolute joint past them in :data:`SYSTEMATIC` of the rows
-    (within a turn), is kept and counted for a warning.
+    (within a turn) or in two rows or more by up to :data:`REPEATED_SLACK`, is kept and counted
+    for a warning.
 
     Args:
         robot: the chain and its limits.
@@ -100,7 +105,9 @@ def check_limits(robot: Robot, data: Dataset, degrees: bool = False) -> int:
     beyond = (data.q < robot.lower - tol) | (data.q > robot.upper + tol)
     bad = (data.q < robot.lower - slack) | (data.q > robot.upper + slack)
     turn = ~np.asarray(robot.prismatic) & (np.abs(data.q) <= 2 * np.pi).all(axis=0)
-    systematic = turn & (beyond.mean(axis=0) >= SYSTEMATIC)
+    excess = np.maximum(robot.lower - data.q, data.q - robot.upper).max(axis=0)  # [rad, m]
+    repeated = (beyond.sum(axis=0) >= 2) & (excess <= REPEATED_SLACK)
+    systematic = turn & ((beyond.mean(axis=0) >= SYSTEMATIC) | repeated)
     bad &= ~systematic
     if not bad.any():
         return int(beyond.sum())
