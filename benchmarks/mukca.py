@@ -9,8 +9,11 @@ protocol: the sockets' positions are the means of that placement's own rows, the
 the calibrated one. It prints, per robot, the held-out mean absolute error (each row's distance
 from its socket's mean tip position) of the URDF as it is and calibrated (median and worst over
 train/test combinations), the distance error ``|distance between the socket means - 50 mm|``,
-what ``diagnose`` names on each placement, and the time per calibration; then it saves a plot of
-every placement's held-out error before and after.
+what ``diagnose`` names on each placement, and the time per calibration. Then, leaving one
+placement out, it calibrates on all the others at once (a folder of the placement folders, as
+``pincal calibrate URDF ROBOT_DIR`` reads it) and judges the one left out; and it prints the
+floor: one model fitted on every placement, judged on each (what a model can reach at best on
+the data it was fitted to). It saves a plot of every placement's held-out error before and after.
 
 Usage::
 
@@ -38,7 +41,7 @@ import numpy as np  # noqa: E402
 import pincal  # noqa: E402
 from pincal.diagnose import diagnose  # noqa: E402
 from pincal.evaluation import ErrorStats, evaluate  # noqa: E402
-from pincal.fixed_points import read_socket_folder  # noqa: E402
+from pincal.point_files import read_socket_folder  # noqa: E402
 
 URDFS = {"panda": "panda.urdf", "kuka": "iiwa14.urdf", "dinova": "gen3lite.urdf"}
 DISTANCE = (("0", "1", 0.05),)  # [m] between the sockets
@@ -55,6 +58,47 @@ class Judged:
     urdf: ErrorStats
     after: ErrorStats
     seconds: float
+
+
+@dataclass(frozen=True)
+class Pooled:
+    """A placement judged with the model calibrated on all the robot's other placements together
+    (``held``), and with the one calibrated on every placement, itself included (``floor``: what
+    a rigid model can reach on this placement at best) [mm]."""
+
+    robot: str
+    test: str
+    held: ErrorStats
+    floor: ErrorStats
+    seconds: float
+
+
+def placements_folder(places: list[Path], folder: Path) -> Path:
+    """A folder of links to ``places``: the data set ``pincal calibrate FOLDER`` reads as every
+    placement at once."""
+    folder.mkdir(parents=True)
+    for place in places:
+        (folder / place.name).symlink_to(place.resolve(), target_is_directory=True)
+    return folder
+
+
+def pooled(robot_dir: Path, urdf: Path, model: str, folder: Path) -> list[Pooled]:
+    """Leave one placement out: calibrate on all the others at once (the robot's folder of
+    placements, as ``pincal calibrate URDF ROBOT_DIR`` reads it), judge on the one left out."""
+    robot = pincal.load_robot(urdf, tip="ball_link")
+    places = sorted(p for p in robot_dir.iterdir() if p.is_dir())
+    options: dict[str, Any] = dict(params="auto", outliers=6.0, point_distances=DISTANCE)
+    every = pincal.calibrate(robot, read_socket_folder(robot_dir, robot.joint_names), model, **options)
+    out = []
+    for place in places:
+        others = placements_folder([p for p in places if p != place], folder / robot_dir.name / place.name)
+        start = time.perf_counter()
+        cal = pincal.calibrate(robot, read_socket_folder(others, robot.joint_names), model, **options)
+        seconds = time.perf_counter() - start
+        held = read_socket_folder(place, robot.joint_names)
+        judged = [evaluate(c.model, c.measurement, c.theta, held, c.extension) for c in (cal, every)]
+        out.append(Pooled(robot_dir.name, place.name, *judged, seconds))
+    return out
 
 
 def with_inertias(urdf: Path, donor: str, folder: Path) -> Path | None:
@@ -114,16 +158,19 @@ def judge(
     return out, causes
 
 
-def table(rows: list[Judged], causes: dict[str, Counter[str]]) -> str:
-    """Per robot: held-out mean absolute error and distance error, URDF as is and calibrated."""
+def table(rows: list[Judged], causes: dict[str, Counter[str]], pools: list[Pooled]) -> str:
+    """Per robot: held-out mean absolute error and distance error, URDF as is and calibrated on
+    one placement; calibrated on all other placements; the floor (every placement fitted)."""
 
     def fig(values: list[float]) -> str:
         return f"{np.median(values):6.3f} ({max(values):6.3f})"
 
     lines = [
         "| robot | placements | URDF as is: MAE, median (worst) [mm] | calibrated: MAE, median (worst) [mm]"
-        " | distance error, URDF / calibrated, median [mm] | diagnose names | time per calibration [s] |",
-        "|---|---|---|---|---|---|---|",
+        " | distance error, URDF / calibrated, median [mm] | diagnose names | time per calibration [s]"
+        " | calibrated on all other placements: MAE, median (worst) [mm] | floor: every placement"
+        " fitted, MAE median [mm] |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for name in sorted({r.robot for r in rows}):
         mine = [r for r in rows if r.robot == name]
@@ -138,7 +185,9 @@ def table(rows: list[Judged], causes: dict[str, Counter[str]]) -> str:
             f"| {fig(each('after', 'point_mae_mm'))} "
             f"| {np.median(each('urdf', 'point_distance_error_mm')):.3f} / "
             f"{np.median(each('after', 'point_distance_error_mm')):.3f} | {named} "
-            f"| {np.median([r.seconds for r in mine]):.3f} |"
+            f"| {np.median([r.seconds for r in mine]):.3f} "
+            f"| {fig([float(p.held.point_mae_mm or 0.0) for p in pools if p.robot == name])} "
+            f"| {np.median([float(p.floor.point_mae_mm or 0.0) for p in pools if p.robot == name]):.3f} |"
         )
     pandas = [r for r in rows if r.robot.startswith("panda")]
     if pandas:
@@ -146,9 +195,19 @@ def table(rows: list[Judged], causes: dict[str, Counter[str]]) -> str:
         off = [float(r.after.point_distance_error_mm or 0.0) for r in pandas]
         lines.append(
             f"\nAll Pandas together ({len(pandas)} train/test combinations): held-out MAE median "
-            f"{np.median(mae):.3f} mm, distance error median {np.median(off):.3f} mm"
+            f"{np.median(mae):.3f} mm, distance error median {np.median(off):.3f} mm; "
+            f"each calibrated on all other placements: {pooled_median(pools):.3f} mm"
         )
     return "\n".join(lines)
+
+
+def pooled_median(pools: list[Pooled]) -> float:
+    """The Pandas' held-out MAE median [mm] of the models calibrated on all other placements,
+    each placement weighted as in the one-placement protocol (judged once per other placement)."""
+    pandas = [p for p in pools if p.robot.startswith("panda")]
+    weights = [sum(q.robot == p.robot for q in pandas) - 1 for p in pandas]
+    values = np.repeat([float(p.held.point_mae_mm or 0.0) for p in pandas], weights)
+    return float(np.median(values))
 
 
 def plot(rows: list[Judged], path: Path) -> None:
@@ -196,13 +255,15 @@ def main() -> None:
     root = args.datasets / "mukca"
     start = time.perf_counter()
     rows: list[Judged] = []
+    pools: list[Pooled] = []
     causes: dict[str, Counter[str]] = {}
     with tempfile.TemporaryDirectory() as folder:
         for robot_dir in sorted((root / "data").iterdir()):
             urdf = root / "urdf" / URDFS[robot_dir.name.split("_")[0]]
             judged, causes[robot_dir.name] = judge(robot_dir, urdf, args.model, Path(folder), args.extend)
             rows += judged
-    print(table(rows, causes))
+            pools += pooled(robot_dir, urdf, args.model, Path(folder))
+    print(table(rows, causes, pools))
     plot(rows, args.plot)
     print(f"\nplot: {args.plot}; whole benchmark {time.perf_counter() - start:.0f} s")
     if args.json is not None:
@@ -216,6 +277,10 @@ def main() -> None:
                 "seconds": r.seconds,
             }  # fmt: skip
             for r in rows
+        ]
+        record += [
+            {"robot": p.robot, "left_out": p.test, "held": p.held.to_dict(), "floor": p.floor.to_dict()}
+            for p in pools
         ]
         args.json.write_text(json.dumps(record, indent=1))
 

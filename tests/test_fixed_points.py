@@ -39,8 +39,9 @@ from pincal.cli import main
 from pincal.diagnose import diagnose
 from pincal.effects import Extension
 from pincal.errors import DataError, PincalError
-from pincal.fixed_points import parse_point_distances, point_errors, read_socket_folder
+from pincal.fixed_points import parse_point_distances, point_errors
 from pincal.kinematics import Chain, forward
+from pincal.point_files import read_socket_folder
 from pincal.report import report_dict
 from pincal.simulation import TrueRobot, ball_positions, hide_effect, points_truth, simulate_points
 

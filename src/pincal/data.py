@@ -223,7 +223,7 @@ def read_csv(
     header = csv_columns(path)
     quat_order = quaternion_columns(path, header, quaternion_order)
     if measure == "points" or (measure is None and "point" in header and "x" not in header):
-        from .fixed_points import read_points_csv  # it reads a Dataset: imported here, not above
+        from .point_files import read_points_csv  # it reads a Dataset: imported here, not above
 
         return read_points_csv(path, joint_names, degrees, units, prismatic)
     required = [*joint_names, "x", "y", "z"]

@@ -24,12 +24,11 @@ robot model is the calibrated one.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .data import Dataset, joint_values, read_rows, read_table
+from .data import Dataset
 from .errors import DataError
 from .options import UNITS
 
@@ -98,6 +97,32 @@ def check_distances(points: tuple[str, ...], distances: tuple[PointDistance, ...
                 )
 
 
+def placed_distances(
+    names: Sequence[str], distances: tuple[PointDistance, ...]
+) -> tuple[PointDistance, ...]:
+    """The known distances as they hold among points ``names``: as written when both points are
+    there; else, for data of several placements of a fixture (points ``<placement>/<name>``, as
+    :func:`pincal.point_files.read_socket_folder` names them), once in every placement that has
+    both; a distance between two placements' points applies to a single placement's own points
+    too (a model fitted on several placements, judged on one). A distance no point matches stays
+    as written (:func:`check_distances` names it)."""
+    there = set(names)
+    places = sorted({name.rpartition("/")[0] for name in names if "/" in name})
+    out: dict[tuple[str, str], float] = {}
+    for a, b, d in distances:
+        bare = (a.rpartition("/")[2], b.rpartition("/")[2])
+        if a in there and b in there:
+            found = [(a, b)]
+        else:
+            found = [(f"{p}/{bare[0]}", f"{p}/{bare[1]}") for p in places]
+            found = [pair for pair in found if set(pair) <= there] or (
+                [bare] if set(bare) <= there else [(a, b)]
+            )
+        for pair in found:
+            out.setdefault(pair, d)
+    return tuple((a, b, d) for (a, b), d in out.items())
+
+
 def point_means(tips: np.ndarray, labels: np.ndarray, n_points: int) -> np.ndarray:
     """Mean tip position of each point's rows (n_points, 3) [m]."""
     counts = np.bincount(labels, minlength=n_points)[:, None]
@@ -115,7 +140,8 @@ def point_errors(
         raise DataError("fixed-point errors need a point column")
     means = point_means(tips, data.labels, len(data.point_names))
     where = {name: k for k, name in enumerate(data.point_names)}
-    known = [(where[a], where[b], d) for a, b, d in distances if a in where and b in where]
+    placed = placed_distances(data.point_names, distances)
+    known = [(where[a], where[b], d) for a, b, d in placed if a in where and b in where]
     off = [abs(float(np.linalg.norm(means[a] - means[b])) - d) for a, b, d in known]
     return np.linalg.norm(tips - means[data.labels], axis=1), np.array(off)
 
@@ -221,75 +247,6 @@ def points_rows(
     for r, (a, b, _) in enumerate(known):
         rows[r, at] = weight * unit[r, axis] * ((point == a).astype(float) - (point == b))
     return res, np.vstack([jac.reshape(-1, len(cols)), rows])
-
-
-def read_points_csv(
-    path: str | Path,
-    joint_names: Sequence[str],
-    degrees: bool = False,
-    units: str = "m",
-    prismatic: Sequence[bool] | None = None,
-) -> Dataset:
-    """Fixed-point data as a CSV (read once): a column per chain joint, as :func:`pincal.data.read_csv`
-    reads them, and a ``point`` column naming each row's point (names in order of first appearance).
-
-    Raises:
-        DataError: the file is missing or malformed, no ``point`` column, an empty point name.
-    """
-    table = read_rows(Path(path))
-    what = f"every chain joint ({', '.join(joint_names)}) and point"
-    q = joint_values(read_table(path, joint_names, what, table=table), degrees, units, prismatic)
-    header, rows = table
-    if "point" not in header:
-        raise DataError(f"{path}: no 'point' column; fixed-point data names each row's point there")
-    at = header.index("point")
-    names: dict[str, int] = {}
-    labels = np.empty(len(rows), dtype=int)
-    for r, row in enumerate(rows):
-        name = row[at].strip()  # read_table checked that every row has the header's fields
-        if not name:
-            raise DataError(f"{path}: data row {r + 1} has no point name in column 'point'")
-        labels[r] = names.setdefault(name, len(names))
-    return Dataset(tuple(joint_names), q, np.zeros((len(q), 3)), labels=labels, point_names=tuple(names))
-
-
-def read_socket_folder(
-    folder: str | Path, joint_names: Sequence[str], prismatic: Sequence[bool] | None = None
-) -> Dataset:
-    """Fixed-point data in MUKCa's layout: a folder of ``hole_<name>.csv`` files without a
-    header, one row per configuration, one column per chain joint in chain order [rad, m]; the
-    point of a row is its file's ``<name>``.
-
-    Raises:
-        DataError: no such files, a row with the wrong number of values, a value not finite.
-    """
-    folder = Path(folder)
-    files = sorted(folder.glob("hole_*.csv"))
-    if not files:
-        raise DataError(f"{folder}: no hole_<name>.csv files (MUKCa's layout: one file per socket)")
-    blocks, labels = [], []
-    for k, path in enumerate(files):
-        try:
-            values = np.loadtxt(path, delimiter=",", ndmin=2, comments="#")
-        except (OSError, ValueError) as exc:
-            raise DataError(f"{path}: not a table of numbers ({exc})") from None
-        if values.size == 0:
-            raise DataError(f"{path} has no rows")
-        if values.shape[1] != len(joint_names) or not np.all(np.isfinite(values)):
-            raise DataError(
-                f"{path}: each row needs {len(joint_names)} finite joint values "
-                f"({', '.join(joint_names)}), it has {values.shape[1]}"
-            )
-        blocks.append(values)
-        labels.append(np.full(len(values), k))
-    q = np.vstack(blocks)
-    names = tuple(path.stem.removeprefix("hole_") for path in files)
-    prism = np.asarray(prismatic if prismatic is not None else [False] * q.shape[1], dtype=bool)
-    if prism.any():
-        raise DataError(f"{folder}: MUKCa's layout is for revolute arms; write a CSV with a point column")
-    return Dataset(
-        tuple(joint_names), q, np.zeros((len(q), 3)), labels=np.concatenate(labels), point_names=names
-    )
 
 
 def blind_jacobian(

@@ -35,7 +35,7 @@ from .data import Dataset
 from .effects import Extension
 from .errors import DataError, IdentifiabilityError
 from .evaluation import evaluate
-from .fixed_points import PointDistance, blind_jacobian, gauge_reasons
+from .fixed_points import PointDistance, blind_jacobian, gauge_reasons, placed_distances
 from .identifiability import RCOND, Identifiability, analyse, check_rank, parameter_scale
 from .kinematics import Chain, forward
 from .lm import levenberg_marquardt
@@ -144,7 +144,7 @@ def set_up(
         rotation_weight=rotation_weight,
         pairs=_pairs(pairs, len(data)),
         points=data.point_names if kind == "points" else (),
-        point_distances=tuple(point_distances),
+        point_distances=placed_distances(data.point_names, tuple(point_distances)),
     )
     problem = Problem(mdl, initial_measurement(robot, data, measurement), data, extension)
     return Setup(problem, natural_scale(problem), tool_se3)

@@ -16,8 +16,9 @@ from ..checks import check_columns, check_limits, check_scale, small_angles
 from ..data import UNITS, Dataset, csv_columns, read_csv
 from ..errors import DataError, ImplausibleError, OutputError
 from ..files import STDIN, output_target
-from ..fixed_points import parse_point_distances, read_socket_folder
+from ..fixed_points import parse_point_distances
 from ..plausibility import Verdict, judge_calibration
+from ..point_files import read_socket_folder
 from ..robots import BUNDLED, Robot, bundled_urdf, load_robot
 
 if TYPE_CHECKING:

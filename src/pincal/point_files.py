@@ -1,0 +1,109 @@
+"""Reading fixed-point data: a CSV with a ``point`` column, or MUKCa's folders of sockets.
+
+Both give a :class:`~pincal.data.Dataset` whose ``labels`` index ``point_names`` (the point each
+row held the tip at); its ``points`` are zero. MUKCa's layout (Franzese, Spahn et al. 2025) is a
+folder per placement of the fixture holding ``hole_<name>.csv`` files without a header, one
+column per chain joint [rad]; a folder of placements reads as one data set.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from .data import Dataset, joint_values, read_rows, read_table
+from .errors import DataError
+
+
+def read_points_csv(
+    path: str | Path,
+    joint_names: Sequence[str],
+    degrees: bool = False,
+    units: str = "m",
+    prismatic: Sequence[bool] | None = None,
+) -> Dataset:
+    """Fixed-point data as a CSV (read once): a column per chain joint, as :func:`pincal.data.read_csv`
+    reads them, and a ``point`` column naming each row's point (names in order of first appearance).
+
+    Raises:
+        DataError: the file is missing or malformed, no ``point`` column, an empty point name.
+    """
+    table = read_rows(Path(path))
+    what = f"every chain joint ({', '.join(joint_names)}) and point"
+    q = joint_values(read_table(path, joint_names, what, table=table), degrees, units, prismatic)
+    header, rows = table
+    if "point" not in header:
+        raise DataError(f"{path}: no 'point' column; fixed-point data names each row's point there")
+    at = header.index("point")
+    names: dict[str, int] = {}
+    labels = np.empty(len(rows), dtype=int)
+    for r, row in enumerate(rows):
+        name = row[at].strip()  # read_table checked that every row has the header's fields
+        if not name:
+            raise DataError(f"{path}: data row {r + 1} has no point name in column 'point'")
+        labels[r] = names.setdefault(name, len(names))
+    return Dataset(tuple(joint_names), q, np.zeros((len(q), 3)), labels=labels, point_names=tuple(names))
+
+
+def read_socket_folder(
+    folder: str | Path, joint_names: Sequence[str], prismatic: Sequence[bool] | None = None
+) -> Dataset:
+    """Fixed-point data in MUKCa's layout: a folder of ``hole_<name>.csv`` files without a
+    header, one row per configuration, one column per chain joint in chain order [rad, m]; the
+    point of a row is its file's ``<name>``. A folder of such folders (placements of the fixture,
+    as MUKCa's ``data/<robot>/``) reads as one data set whose points are ``<placement>/<name>``:
+    every placement's sockets are unknowns of their own, the robot is shared, and a known
+    distance ``0,1=D`` holds in each placement (:func:`pincal.fixed_points.placed_distances`).
+
+    Raises:
+        DataError: no such files, a row with the wrong number of values, a value not finite.
+    """
+    folder = Path(folder)
+    files = sorted(folder.glob("hole_*.csv"))
+    if not files:
+        places = sorted(p for p in folder.iterdir() if p.is_dir() and any(p.glob("hole_*.csv")))
+        if places:
+            return _placements(folder, places, joint_names, prismatic)
+        raise DataError(
+            f"{folder}: no hole_<name>.csv files (MUKCa's layout: one file per socket), nor folders "
+            "of them (one per placement of the fixture)"
+        )
+    blocks, labels = [], []
+    for k, path in enumerate(files):
+        try:
+            values = np.loadtxt(path, delimiter=",", ndmin=2, comments="#")
+        except (OSError, ValueError) as exc:
+            raise DataError(f"{path}: not a table of numbers ({exc})") from None
+        if values.size == 0:
+            raise DataError(f"{path} has no rows")
+        if values.shape[1] != len(joint_names) or not np.all(np.isfinite(values)):
+            raise DataError(
+                f"{path}: each row needs {len(joint_names)} finite joint values "
+                f"({', '.join(joint_names)}), it has {values.shape[1]}"
+            )
+        blocks.append(values)
+        labels.append(np.full(len(values), k))
+    q = np.vstack(blocks)
+    names = tuple(path.stem.removeprefix("hole_") for path in files)
+    prism = np.asarray(prismatic if prismatic is not None else [False] * q.shape[1], dtype=bool)
+    if prism.any():
+        raise DataError(f"{folder}: MUKCa's layout is for revolute arms; write a CSV with a point column")
+    return Dataset(
+        tuple(joint_names), q, np.zeros((len(q), 3)), labels=np.concatenate(labels), point_names=names
+    )
+
+
+
+
+def _placements(
+    folder: Path, places: list[Path], joint_names: Sequence[str], prismatic: Sequence[bool] | None
+) -> Dataset:
+    """The placements' data as one data set, their points named ``<placement>/<name>``."""
+    parts = [read_socket_folder(place, joint_names, prismatic) for place in places]
+    names = tuple(f"{place.name}/{name}" for place, part in zip(places, parts) for name in part.point_names)
+    first = np.cumsum([0] + [len(part.point_names) for part in parts[:-1]])
+    labels = np.concatenate([part.labels + k for part, k in zip(parts, first) if part.labels is not None])
+    q = np.vstack([part.q for part in parts])
+    return Dataset(tuple(joint_names), q, np.zeros((len(q), 3)), labels=labels, point_names=names)

@@ -1,0 +1,143 @@
+"""Several placements of a socket fixture calibrated together (MUKCa's folders of placements).
+
+A folder of placement folders, each of ``hole_<name>.csv``, reads as one data set whose points
+are ``<placement>/<name>``; a known distance ``0,1=D`` holds in every placement; a model fitted on
+several placements is judged on another one, whose points are named ``0``, ``1``. Properties:
+the reader keeps every row with its own placement's point, the distances go to each placement,
+and the calibration on two placements reaches the noise floor on a third, through the API and the
+command line.
+"""
+
+from __future__ import annotations
+
+import json
+from functools import cache
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import pincal
+from pincal.cli import main
+from pincal.fixed_points import placed_distances, point_errors
+from pincal.point_files import read_socket_folder
+from pincal.simulation import TrueRobot, ball_positions, points_truth, simulate_points
+
+NOISE = 5e-5  # 1σ per coordinate of where the hand holds the ball [m]
+DISTANCE = 0.05  # between the two sockets of the fixture [m]
+#: Where the fixture stands in each placement: its first socket [m] and the direction to the
+#: second (unit vectors), in the base frame.
+PLACES = {
+    "front": (np.array([0.45, 0.0, 0.25]), np.array([0.0, 1.0, 0.0])),
+    "left": (np.array([0.10, 0.45, 0.15]), np.array([1.0, 0.0, 0.0])),
+    "low": (np.array([0.30, -0.35, 0.10]), np.array([0.6, 0.8, 0.0])),
+}
+N_ROWS = 40  # per placement, half per socket
+FLOOR_FACTOR = 1.3  # how far above the noise floor the held-out RMS may sit
+
+
+def _sockets(place: str) -> np.ndarray:
+    first, direction = PLACES[place]
+    return np.array([first, first + DISTANCE * direction])
+
+
+@cache
+def _experiment() -> tuple[TrueRobot, dict[str, pincal.Dataset]]:
+    """A seeded true UR5 and its rows at each placement of the fixture."""
+    truth = points_truth(pincal.load_robot("ur5"), 3)
+    data = {
+        place: simulate_points(truth, _sockets(place), N_ROWS, NOISE, np.random.default_rng(k))
+        for k, place in enumerate(PLACES)
+    }
+    return truth, data
+
+
+def _write_folder(folder: Path, data: dict[str, pincal.Dataset]) -> Path:
+    """MUKCa's layout: ``folder/<placement>/hole_<name>.csv``."""
+    for place, rows in data.items():
+        (folder / place).mkdir(parents=True)
+        assert rows.labels is not None
+        for k, name in enumerate(rows.point_names):
+            np.savetxt(folder / place / f"hole_{name}.csv", rows.q[rows.labels == k], delimiter=",")
+    return folder
+
+
+def test_placed_distances() -> None:
+    """As written when both points exist; per placement; a placement's back to a bare pair."""
+    both = placed_distances(("0", "1"), (("0", "1", DISTANCE),))
+    assert both == (("0", "1", DISTANCE),)
+    names = ("a/0", "a/1", "b/0", "b/1", "c/0")
+    each = placed_distances(names, (("0", "1", DISTANCE),))
+    assert each == (("a/0", "a/1", DISTANCE), ("b/0", "b/1", DISTANCE))  # c has no point 1
+    back = placed_distances(("0", "1"), each)
+    assert back == (("0", "1", DISTANCE),)
+    assert placed_distances(names, (("0", "7", DISTANCE),)) == (("0", "7", DISTANCE),)
+
+
+def test_folder_of_placements_reads_every_row_at_its_own_point(tmp_path: Path) -> None:
+    """Rows keep their joint values and their placement's point; names are ``place/socket``."""
+    _, data = _experiment()
+    robot = pincal.load_robot("ur5")
+    read = read_socket_folder(_write_folder(tmp_path, data), robot.joint_names)
+    assert read.point_names == tuple(f"{p}/{s}" for p in sorted(PLACES) for s in ("0", "1"))
+    assert read.labels is not None and len(read) == N_ROWS * len(PLACES)
+    for k, name in enumerate(read.point_names):
+        place, _, socket = name.partition("/")
+        own = data[place]
+        assert own.labels is not None
+        expected = own.q[own.labels == own.point_names.index(socket)]
+        np.testing.assert_allclose(read.q[read.labels == k], expected, rtol=1e-15, atol=1e-15)
+
+
+def test_two_placements_calibrate_to_the_noise_floor_of_a_third(tmp_path: Path) -> None:
+    """Fitted on ``front`` and ``left`` together (a distance in each), judged on ``low``: within
+    1.3x of the true robot's own score there, the distance error at the means' noise."""
+    truth, data = _experiment()
+    robot = pincal.load_robot("ur5")
+    two = _write_folder(tmp_path, {p: data[p] for p in ("front", "left")})
+    fitted = read_socket_folder(two, robot.joint_names)
+    cal = pincal.calibrate(
+        robot, fitted, "placements", params="auto", point_distances=(("0", "1", DISTANCE),), test=data["low"]
+    )
+    assert cal.measurement.point_distances == (
+        ("front/0", "front/1", DISTANCE),
+        ("left/0", "left/1", DISTANCE),
+    )
+    held = data["low"]
+    floor = np.sqrt(np.mean(point_errors(ball_positions(truth, held.q)[0], held, ())[0] ** 2)) * 1e3
+    assert cal.test_after is not None and cal.test_before is not None
+    assert cal.test_before.rms_mm > 5 * floor
+    assert cal.test_after.rms_mm <= FLOOR_FACTOR * floor, (cal.test_after.rms_mm, floor)
+    assert cal.test_after.point_distance_error_mm is not None
+    assert cal.test_after.point_distance_error_mm <= 4 * NOISE * 1e3 * np.sqrt(2 / (N_ROWS / 2))
+
+
+def test_cli_calibrates_a_folder_of_placements(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """``pincal calibrate ur5 ROBOT_DIR --test PLACEMENT_DIR``: every placement fitted, the
+    report's held-out figures those of the API's calibration."""
+    _, data = _experiment()
+    folder = _write_folder(tmp_path / "robot", {p: data[p] for p in ("front", "left")})
+    test = _write_folder(tmp_path / "held", {"low": data["low"]}) / "low"
+    report = tmp_path / "report.json"
+    capsys.readouterr()
+    args = ["calibrate", "ur5", folder, "--point-distance", "0,1=50", "--units", "mm"]
+    code = main([str(a) for a in [*args, "--test", test, "--report", report]])
+    err = capsys.readouterr().err
+    assert code == 0, err
+    written = json.loads(report.read_text())
+    assert written["measure"] == "points" and written["n_poses"] == 2 * N_ROWS
+    robot = pincal.load_robot("ur5")
+    cal = pincal.calibrate(
+        robot,
+        read_socket_folder(folder, robot.joint_names),
+        "placements",
+        params="auto",
+        outliers=6.0,
+        point_distances=(("0", "1", DISTANCE),),
+        test=read_socket_folder(test, robot.joint_names),
+    )
+    assert cal.test_after is not None
+    assert np.isclose(written["test"]["after"]["rms_mm"], cal.test_after.rms_mm, rtol=1e-6)
+    assert written["test"]["after"]["point_distance_error_mm"] is not None
