@@ -96,42 +96,19 @@ def pooled(robot_dir: Path, urdf: Path, model: str, folder: Path) -> list[Pooled
         cal = pincal.calibrate(robot, read_socket_folder(others, robot.joint_names), model, **options)
         seconds = time.perf_counter() - start
         held = read_socket_folder(place, robot.joint_names)
-        judged = [evaluate(c.model, c.measurement, c.theta, held, c.extension) for c in (cal, every)]
-        out.append(Pooled(robot_dir.name, place.name, *judged, seconds))
-    return out
-
-
-def with_inertias(urdf: Path, donor: str, folder: Path) -> Path | None:
-    """A copy of ``urdf`` (in ``folder``) with the ``<inertial>`` of the bundled robot ``donor``'s
-    links of the same names: MUKCa's Panda and iiwa14 URDFs have no masses, so gravity torques
-    (compliance, backlash) cannot be tried on them as they are. None if no link matches."""
-    from lxml import etree
-
-    from pincal.robots import bundled_urdf
-
-    tree, source = etree.parse(str(urdf)), etree.parse(str(bundled_urdf(donor)))
-    inertials = {link.get("name"): link.find("inertial") for link in source.getroot().findall("link")}
-    moved = 0
-    for link in tree.getroot().findall("link"):
-        found = inertials.get(link.get("name"))
-        if found is not None and link.find("inertial") is None:
-            link.append(found)
-            moved += 1
-    if not moved:
-        return None
-    out = folder / f"{urdf.stem}_with_{donor}_inertias.urdf"
-    tree.write(str(out))
+        held_err, floor = (evaluate(c.model, c.measurement, c.theta, held, c.extension) for c in (cal, every))
+        out.append(Pooled(robot_dir.name, place.name, held_err, floor, seconds))
     return out
 
 
 def judge(
-    robot_dir: Path, urdf: Path, model: str, folder: Path, extend: str = "none"
+    robot_dir: Path, urdf: Path, model: str, extend: str = "none"
 ) -> tuple[list[Judged], Counter[str]]:
-    """Calibrate on each placement, judge on the others; what diagnose names per placement (on
-    the URDF with the bundled Panda's masses for the Pandas: see :func:`with_inertias`)."""
+    """Calibrate on each placement, judge on the others; what diagnose names per placement (for
+    the Pandas, whose URDF has no masses, with the bundled Panda's: ``--inertias panda``)."""
     robot = pincal.load_robot(urdf, tip="ball_link")
-    massive = with_inertias(urdf, "panda", folder) if robot_dir.name.startswith("panda") else None
-    masses = None if massive is None else pincal.load_robot(massive, tip="ball_link")
+    panda = robot_dir.name.startswith("panda")
+    masses = pincal.load_robot(urdf, tip="ball_link", inertias="panda") if panda else None
     places = {
         p.name: read_socket_folder(p, robot.joint_names) for p in sorted(robot_dir.iterdir()) if p.is_dir()
     }
@@ -260,7 +237,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as folder:
         for robot_dir in sorted((root / "data").iterdir()):
             urdf = root / "urdf" / URDFS[robot_dir.name.split("_")[0]]
-            judged, causes[robot_dir.name] = judge(robot_dir, urdf, args.model, Path(folder), args.extend)
+            judged, causes[robot_dir.name] = judge(robot_dir, urdf, args.model, args.extend)
             rows += judged
             pools += pooled(robot_dir, urdf, args.model, Path(folder))
     print(table(rows, causes, pools))

@@ -26,7 +26,7 @@ from scipy.special import fdtrc
 from .calibration import Calibration
 from .crossval import cross_validate
 from .data import Dataset
-from .effects import Extension, Payload, Stiffness, candidates, compliance_stiffness
+from .effects import Extension, Payload, Stiffness, candidates, compliance_stiffness, massless
 from .pipeline import calibrate
 from .robots import Robot
 from .screening import Linearised, Screen
@@ -135,8 +135,21 @@ class Diagnosis:
         """Baseline / extended cross-validated RMS."""
         return self.baseline_cv_rms_mm / self.extended_cv_rms_mm
 
+    @property
+    def untried(self) -> str | None:
+        """What could not be tried and how to try it, or None."""
+        loaded = any(c.extension.effect in ("joint_compliance", "backlash") for c in self.candidates)
+        if loaded or not massless(self.baseline.model.robot):
+            return None
+        return "compliance and backlash not tried: the URDF has no masses (lend them with --inertias URDF)"
+
     def summary(self) -> str:
         """One line a person can act on."""
+        note = f"; {self.untried}" if self.untried else ""
+        return self._named() + note
+
+    def _named(self) -> str:
+        """What the diagnosis names, with its gain."""
         b, a = self.baseline_cv_rms_mm, self.extended_cv_rms_mm
         if self.cause is None:
             return (

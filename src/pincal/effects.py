@@ -88,6 +88,12 @@ def gravity_torques(robot: Robot, q: np.ndarray, payload: Payload | None = None)
     return out
 
 
+def massless(robot: Robot) -> bool:
+    """True when no body of the chain has a mass: the URDF has no ``<inertial>`` (gravity
+    torques, and with them compliance and backlash, are then zero)."""
+    return sum(inertia.mass for inertia in robot.model.inertias) <= 0.0
+
+
 @dataclass(frozen=True, eq=False)
 class Extension:
     """One effect on one joint.

@@ -187,6 +187,8 @@ def choice_lines(cal: Calibration, data: Dataset | None = None) -> list[str]:
                 f"cause: {choice.extension.label}, {choice.folds}-fold CV RMS "
                 f"{diag.baseline_cv_rms_mm:.3f} → {diag.extended_cv_rms_mm:.3f} mm (gain {diag.gain:.2f})"
             )
+        if diag is not None and diag.untried:
+            lines.append(f"  {diag.untried}")
         if len(choice.rounds) > 1:
             lines.append(
                 "  rounds: "

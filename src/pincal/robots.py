@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 
-from .descriptions import URDF_SUFFIXES, check_urdf_text, robot_description
+from .descriptions import URDF_SUFFIXES, borrow_inertias, check_urdf_text, robot_description
 from .errors import RobotError
 from .joint_kinds import actuated_joints, joint_path, mimic_joints, reference_configuration
 from .options import BUNDLED
@@ -227,6 +227,7 @@ def load_robot(
     xacro_args: Mapping[str, str] | None = None,
     package_paths: Mapping[str, Path] | None = None,
     kinematics: str | Path | URKinematics | None = None,
+    inertias: str | Path | None = None,
 ) -> Robot:
     """Load a robot and reduce it to the chain from its base to ``tip``.
 
@@ -238,6 +239,9 @@ def load_robot(
         locked: values for locked joints [rad or m]; unspecified ones are locked at neutral.
         xacro_args, package_paths, kinematics: a xacro's arguments and ``$(find)`` folders, and a
             UR kinematics YAML applied on top (see :func:`pincal.descriptions.robot_description`).
+        inertias: a URDF (or bundled name) whose links lend their masses to the links of the same
+            name that have none (:func:`pincal.descriptions.borrow_inertias`), for gravity torques;
+            ``urdf_text`` stays the URDF's own.
 
     Raises:
         RobotError: unknown name, unreadable URDF, unknown tip frame or joint.
@@ -253,7 +257,7 @@ def load_robot(
         if not path.is_file():
             raise RobotError(f"URDF file not found: {path}")
     text = robot_description(path, xacro_args, package_paths, kinematics)
-    full, mimic = _parse_urdf(path, text)
+    full, mimic = _parse_urdf(path, text if inertias is None else _with_inertias(text, inertias))
     if tip is None:
         tip = _deepest_body(full)
     tip_id = _find_frame(full, tip)
@@ -288,6 +292,15 @@ def load_robot(
         urdf_joints=tuple(full.names[1:]),
         urdf_text=text,
     )
+
+
+def _with_inertias(text: str, donor: str | Path) -> str:
+    """``text`` with the masses of the URDF or bundled robot ``donor`` (see :func:`load_robot`)."""
+    name = str(donor)
+    path = bundled_urdf(name) if name in BUNDLED else Path(name)
+    if not path.is_file():
+        raise RobotError(f"--inertias {name}: no such URDF file, nor a bundled robot ({', '.join(BUNDLED)})")
+    return borrow_inertias(text, robot_description(path), name)
 
 
 def _parse_urdf(path: Path, text: str) -> tuple[pin.Model, dict[str, str]]:

@@ -39,8 +39,9 @@ def ur_yaml_output(args: argparse.Namespace) -> bool:
 
 
 def robot_options(args: argparse.Namespace) -> dict[str, Any]:
-    """Keyword arguments of :func:`pincal.load_robot` from ``--xacro-arg``, ``--package-path``
-    and ``--kinematics`` (for a bundled UR written as a UR YAML: ``ur_description``'s default)."""
+    """Keyword arguments of :func:`pincal.load_robot` from ``--xacro-arg``, ``--package-path``,
+    ``--kinematics`` (for a bundled UR written as a UR YAML: ``ur_description``'s default) and
+    ``--inertias``."""
     from ..descriptions import parse_package_paths, parse_xacro_args
     from ..ur_yaml import DEFAULT_DH, default_ur_kinematics
 
@@ -51,6 +52,7 @@ def robot_options(args: argparse.Namespace) -> dict[str, Any]:
         "xacro_args": parse_xacro_args(getattr(args, "xacro_arg", None)),
         "package_paths": parse_package_paths(getattr(args, "package_path", None)),
         "kinematics": kinematics,
+        "inertias": getattr(args, "inertias", None),
     }
 
 
@@ -85,6 +87,7 @@ def check_outputs(args: argparse.Namespace, outputs: Sequence[Path | None], inpu
         inputs: what each input is ("data file", ...) -> its path or ROBOT argument (or None).
     """
     inputs = {**inputs, "kinematics YAML": getattr(args, "kinematics", None)}
+    inputs["--inertias URDF"] = getattr(args, "inertias", None)
     sources = {label: Path(str(p)) for label, p in inputs.items() if p is not None and str(p) != STDIN}
     sources = {label: p for label, p in sources.items() if p.is_file()}
     seen: list[Path] = []

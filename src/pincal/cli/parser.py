@@ -217,6 +217,12 @@ def _add_robot_options(cmd: argparse.ArgumentParser, flag: str = "ROBOT") -> Non
         metavar="FILE.yaml",
         help=f"a UR kinematics YAML (ur_description's format) applied on the UR {flag}",
     )
+    cmd.add_argument(
+        "--inertias",
+        metavar="URDF",
+        help=f"a URDF or bundled robot whose links lend their masses to {flag}'s links of the same "
+        "name that have none (gravity torques: compliance and backlash)",
+    )
 
 
 def _add_force(cmd: argparse.ArgumentParser) -> None:
