@@ -116,12 +116,13 @@ def test_plan_candidates_are_bounded_by_memory(
     )
     most = int(line.split("ask for ")[1].split()[0])
     assert 1000 < most < 10_000_000
+    # what fits passes (on the same 4 GB: this machine's free memory varies with its load)
+    pincal.candidates.check_memory(pincal.load_robot("ur5"), most, "position", 10)
     monkeypatch.undo()
     _one_line(
         capfd, main(["plan", "ur5", "--poses", "10", "--candidates", str(10**13), "-o", str(out)]), "memory"
     )
     assert not out.exists()
-    pincal.candidates.check_memory(pincal.load_robot("ur5"), most, "position", 10)  # what fits passes
 
 
 # -- compensate: quaternions and the sidecar ---------------------------------------------------------
