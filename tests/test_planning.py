@@ -16,8 +16,9 @@ import numpy as np
 import pytest
 
 import pincal
+from pincal.candidates import perturbed
 from pincal.data import read_table
-from pincal.design import _change, exchange, greedy, information, loss
+from pincal.design import _change, exchange, greedy, information, loss, swap
 from pincal.information import Information
 from pincal.kinematics import Chain, forward
 from pincal.planning import _design, candidate_poses, plan_poses, write_poses
@@ -159,6 +160,37 @@ def test_exchange_never_makes_the_loss_worse(get_robot) -> None:
     assert len(set(better)) == 6
     value = [loss("i", [information(rows, 0, d, prior[0])], weights) for d in (start, better)]
     assert value[1] <= value[0]
+
+
+@pytest.mark.parametrize("criterion", ["i", "d"])
+def test_swaps_take_from_the_pools_and_never_make_the_loss_worse(criterion: str) -> None:
+    rng = np.random.default_rng(6)
+    g = rng.normal(size=(200, 3, 8)) * rng.uniform(0.1, 2.0, 8)
+    weights = [np.diag(rng.uniform(0.5, 2.0, 8))]
+    prior = [1e-8 * np.eye(8)]
+    rows = lambda h, k, c: g[k]  # noqa: E731
+    start = exchange(criterion, rows, 100, greedy(rows, 100, 6, prior), prior, weights)  # the first 100
+    pools = [np.arange(100 + 10 * n, 110 + 10 * n) for n in range(6)]  # each pose its own 10
+    better = swap(criterion, rows, start, prior, pools, weights)
+    assert all(b == s or b in pool for b, s, pool in zip(better, start, pools))
+    assert better != start  # 60 new candidates: some replace a pose
+    value = [loss(criterion, [information(rows, 0, d, prior[0])], weights) for d in (start, better)]
+    assert value[1] < value[0]
+
+
+def test_moves_are_feasible_and_near_their_pose(get_robot) -> None:
+    robot = get_robot("ur5")
+    tool = np.array([0.0, 0.05, 0.1])
+    q = candidate_poses(robot, 10, seed=3, clearance=0.1, tool=tool)
+    moved, near = perturbed(robot, q, 30, 0.02, np.random.default_rng(0), 0.05, 0.1, tool, None, 0.9)
+    assert len(moved) > 100 and set(near.tolist()) <= set(range(10))
+    assert np.all(np.abs(moved - q[near]) < 0.02 * 2 * np.pi * 6)  # 6σ of each joint's step
+    span = robot.upper - robot.lower
+    assert np.all((moved >= robot.lower + 0.05 * span) & (moved <= robot.upper - 0.05 * span))
+    frames = forward(Chain.nominal(robot), moved)
+    point = frames.tip_translation + frames.tip_rotation @ tool
+    assert np.all(frames.translations[4:, :, 2] >= 0.1) and np.all(point[:, 2] >= 0.1)
+    assert np.all(np.linalg.norm(point, axis=1) <= 0.9)
 
 
 def test_i_optimal_plan_predicts_less_error_over_the_task_than_d(get_robot) -> None:

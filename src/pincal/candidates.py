@@ -89,6 +89,40 @@ def _feasible(
     return ok
 
 
+def perturbed(
+    robot: Robot,
+    q: np.ndarray,
+    n_each: int,
+    step: float,
+    rng: np.random.Generator,
+    margin: float = 0.05,
+    clearance: float = 0.05,
+    tool: np.ndarray | None = None,
+    instrument: np.ndarray | None = None,
+    reach: float | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Feasible configurations near each of ``q`` (N, n) [rad or m], and which pose each is near.
+
+    Each pose is moved ``n_each`` times by a normal step of ``step`` times each joint's range
+    (at most a turn) per joint; moves past the limits (less ``margin`` of the range), below the
+    floor or out of reach are dropped (see :func:`candidate_poses` for the arguments).
+
+    Returns:
+        (M, n) the configurations and (M,) the index in ``q`` of the pose each is near.
+    """
+    lo, hi = robot.lower, robot.upper
+    span = np.where(np.isfinite(hi - lo), hi - lo, 2 * np.pi)
+    owner = np.repeat(np.arange(len(q)), n_each)
+    moved = q[owner] + step * np.minimum(span, 2 * np.pi) * rng.standard_normal((len(owner), q.shape[1]))
+    inside = np.all((moved >= lo + margin * span) & (moved <= hi - margin * span), axis=1)
+    point = np.zeros(3) if tool is None else np.asarray(tool, float)
+    centre = np.zeros(3) if instrument is None else np.asarray(instrument, float)
+    ok = np.zeros(len(moved), bool)
+    if inside.any():
+        ok[inside] = _feasible(Chain.nominal(robot), moved[inside], point, clearance, centre, reach)
+    return moved[ok], owner[ok]
+
+
 def socket_candidates(
     robot: Robot,
     sockets: np.ndarray,

@@ -16,7 +16,9 @@ changes by ``-log det S`` (d) or ``-s tr(S⁻¹ G F⁻¹ W F⁻¹ Gᵀ)`` (i), f
 The search is a greedy start (D-optimal, the only criterion defined before ``F`` has full rank),
 then exchanges in the manner of Mitchell's DETMAX: add the candidate that lowers the loss most,
 remove the pose whose removal raises it least; stop when that is the pose just added. Every
-exchange lowers the loss, so it ends.
+exchange lowers the loss, so it ends. :func:`swap` then makes Fedorov's exchanges on given pools
+(e.g. small moves of each pose, :func:`pincal.planning.plan_poses`): each pose in turn is
+replaced by the candidate of its pool that lowers the loss most, when one does.
 
 Rows may depend on the design itself (distance data: a pose's rows are its pairs with the chosen
 poses), so they come from a function ``rows(h, candidates, chosen)`` -> (len(candidates), r, P).
@@ -140,4 +142,52 @@ def exchange(
         others = [i for n, i in enumerate(grown) if n != drop]
         finvs = [_update(added[h], rows(h, np.array([grown[drop]]), others)[0], -1.0) for h in range(n_hyp)]
         chosen = others
+    return chosen
+
+
+def swap(
+    criterion: str,
+    rows: Rows,
+    start: Sequence[int],
+    priors: Sequence[np.ndarray],
+    pools: Sequence[np.ndarray],
+    weights: Sequence[np.ndarray] | None = None,
+    tol: float = 1e-4,
+) -> list[int]:
+    """One pass of Fedorov's exchanges: pose ``n`` replaced by the best candidate of ``pools[n]``.
+
+    Args:
+        criterion: ``d`` or ``i``.
+        rows: the rows of candidates given the chosen poses, per hypothesis.
+        start: the design (indices).
+        priors: ``F₀`` per hypothesis.
+        pools: per pose of ``start``, the candidates (indices) that may replace it.
+        weights: ``W_h`` per hypothesis (criterion ``i``).
+        tol: a replacement must lower the loss by this much (relative for ``i``, absolute
+            ``log det`` for ``d``).
+
+    Returns:
+        The design, of the same size, its loss never higher than ``start``'s.
+    """
+    chosen, n_hyp = list(start), len(priors)
+    finvs = [np.linalg.inv(information(rows, h, chosen, priors[h])) for h in range(n_hyp)]
+    ws: list[np.ndarray | None] = [None] * n_hyp if weights is None else list(weights)
+    for pos, pool in enumerate(pools):
+        pool = np.setdiff1d(np.asarray(pool, dtype=int), chosen)
+        if not len(pool):
+            continue
+        others = chosen[:pos] + chosen[pos + 1 :]
+        out = [rows(h, np.array([chosen[pos]]), others)[0] for h in range(n_hyp)]
+        cost = sum(float(_change(criterion, f, w, g[None], -1.0)[0]) for f, w, g in zip(finvs, ws, out))
+        if not np.isfinite(cost):
+            continue
+        removed = [_update(f, g, -1.0) for f, g in zip(finvs, out)]
+        gain = np.sum(
+            [_change(criterion, f, ws[h], rows(h, pool, others), 1.0) for h, f in enumerate(removed)], 0
+        )
+        k = int(np.argmin(gain))
+        scale = 1.0 if criterion == "d" else sum(np.trace(w @ f) for w, f in zip(ws, finvs) if w is not None)
+        if cost + gain[k] < -tol * scale:
+            finvs = [_update(f, rows(h, pool[k : k + 1], others)[0], 1.0) for h, f in enumerate(removed)]
+            chosen[pos] = int(pool[k])
     return chosen

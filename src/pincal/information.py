@@ -109,6 +109,14 @@ class Information:
         ridge = 1e-8 * float(np.mean([np.einsum("mrp,mrp->", g, g) / len(g) for g in self.rows]))
         self.priors = [ridge * np.eye(int(self.free.sum())) + self.prior(r[3]) for r in raws]
 
+    def extend(self, q: np.ndarray, tools: list[np.ndarray]) -> None:
+        """Append candidates ``q`` (M, n) [rad or m], their rows and points per hypothesis ``tools``
+        (the same as the constructor's); not for fixed points (each candidate is in a socket)."""
+        for h, tool in enumerate(tools):
+            rows, tips, _, _ = self.raw(q, tool)
+            self.rows[h] = np.concatenate([self.rows[h], self.whiten(rows)])
+            self.tips[h] = np.concatenate([self.tips[h], tips])
+
     def measurement(self, tool: np.ndarray, kind: str | None = None) -> Measurement:
         """The fit's measurement model with the measured point ``tool`` (3,) [m]."""
         kind = kind or ("position" if self.measure == "distance" else self.measure)

@@ -13,8 +13,9 @@ the robot will work in), ``tr(W F⁻¹)`` with the registration and tool unknown
 fit, on the parameters the fit identifies. ``d`` (D-optimality, ``log det F``) shrinks the volume
 of the parameters' confidence ellipsoid instead: it is blind to which parameters matter where the
 robot works, and to the lever arm of an unknown tool. Both start from a greedy D-optimal design
-and improve it by exchanges (:mod:`pincal.design`). ``benchmarks/planning_ratio.py`` measures
-both against random poses (README, "Planning").
+and improve it by exchanges (:mod:`pincal.design`), then by small feasible moves of each pose,
+steps from a tenth to a hundredth of each joint's range (poses in sockets stay where they are).
+``benchmarks/planning_ratio.py`` measures both against random poses (README, "Planning").
 
 The predicted uncertainty follows from ``cov = F⁻¹``: parameter standard deviations, and the
 held-out RMS over the task poses ``√(tr(W cov) + noise)``.
@@ -27,8 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .candidates import candidate_poses, check_memory, socket_candidates
-from .design import CRITERIA, exchange, greedy
+from .candidates import candidate_poses, check_memory, perturbed, socket_candidates
+from .design import CRITERIA, exchange, greedy, swap
 from .effects import Extension
 from .errors import DataError, IdentifiabilityError
 from .files import atomic_write
@@ -68,7 +69,8 @@ class Plan:
         robot: the robot.
         model, measure, criterion: what the plan is for, and how it was chosen.
         names, units: the identifiable parameters (those of ``Design.std``) and their units.
-        candidates: (M, n) the feasible random candidates (the first N are the random design).
+        candidates: (M, n) the feasible random candidates (the first N are the random design),
+            then the moves of the chosen poses tried by the refinement.
         chosen: (N,) indices of the planned poses among the candidates, in the order chosen.
         planned, random: the two designs.
         sockets: (N,) the socket of each planned pose (fixed-point data), else None.
@@ -190,7 +192,8 @@ def plan_poses(
     point = np.zeros(3) if tool is None else np.asarray(tool, float)
     tolerance = (0.01 if tool is not None else 0.1) if tool_tolerance is None else tool_tolerance
     tools = tool_hypotheses(tool, tolerance)
-    cand, labels = _candidates(robot, candidates, seed, sockets, margin, clearance, point, instrument, reach)
+    where = Feasible(margin, clearance, point, instrument, reach)
+    cand, labels = _candidates(robot, candidates, seed, sockets, where)
     if task is None:
         task = candidate_poses(robot, n_test, seed + 1, margin, 0.0, clearance, point, instrument, reach)
     ext = Extension.parse(robot, extension) if isinstance(extension, str) else extension
@@ -199,13 +202,10 @@ def plan_poses(
     )
     _check_equations(measure, n_poses, int(info.free.sum()))
     weights = info.task_weights(np.atleast_2d(task), tools)
-    rows = info.candidate_rows
-    chosen = greedy(rows, len(cand), n_poses, info.priors)
-    chosen = exchange(criterion, rows, len(cand), chosen, info.priors, weights)
-    if labels is not None:  # socket by socket: the ball is moved once
-        chosen = [chosen[k] for k in np.argsort(labels[chosen], kind="stable")]
-    names = tuple(n for n, f in zip(info.names, info.free) if f)
-    units = tuple(u for u, f in zip(info.units, info.free) if f)
+    rows, priors = info.candidate_rows, info.priors
+    chosen = exchange(criterion, rows, len(cand), greedy(rows, len(cand), n_poses, priors), priors, weights)
+    cand, chosen = _refine(info, tools, criterion, weights, cand, chosen, where, seed)
+    names, units = (tuple(x for x, f in zip(v, info.free) if f) for v in (info.names, info.units))
     at = (None, None) if labels is None else (labels[chosen], labels[:n_poses])
     w = weights[info.best]  # the predictions' hypothesis, whose weights are already made
     planned, random = _design(info, cand[chosen], at[0], w), _design(info, cand[:n_poses], at[1], w)
@@ -213,14 +213,53 @@ def plan_poses(
     return Plan(robot, model, measure, criterion, names, units, cand, chosen_, planned, random, at[0])
 
 
+@dataclass(frozen=True)
+class Feasible:
+    """Where candidates may be, see :func:`pincal.candidates.candidate_poses` (lengths [m])."""
+
+    margin: float
+    clearance: float
+    point: np.ndarray
+    instrument: np.ndarray | None
+    reach: float | None
+
+
+#: Local refinement: the steps of the moves of each pose (fractions of each joint's range) and
+#: how many moves of each pose are tried per step.
+STEPS, MOVES = (0.1, 0.05, 0.025, 0.0125, 0.006), 20
+
+
+def _refine(
+    info: Information, tools: list[np.ndarray], criterion: str, weights: list[np.ndarray],
+    cand: np.ndarray, chosen: list[int], feasible: Feasible, seed: int,
+) -> tuple[np.ndarray, list[int]]:
+    """The design improved by small moves of its poses: at each of :data:`STEPS`, ``MOVES``
+    feasible moves of every pose become candidates (appended to ``cand`` and ``info``), and
+    each pose is replaced by its best move when that lowers the loss (:func:`pincal.design.swap`).
+    Poses in sockets cannot move: they are ordered socket by socket (the ball is moved once)."""
+    if info.labels is not None:
+        return cand, [chosen[k] for k in np.argsort(info.labels[chosen], kind="stable")]
+    rng = np.random.default_rng(seed + 2)
+    f = feasible
+    for step in STEPS:
+        moved, near = perturbed(
+            info.robot, cand[chosen], MOVES, step, rng, f.margin, f.clearance, f.point, f.instrument, f.reach
+        )
+        pools = [len(cand) + np.flatnonzero(near == n) for n in range(len(chosen))]
+        info.extend(moved, tools)
+        cand = np.concatenate([cand, moved])
+        chosen = swap(criterion, info.candidate_rows, chosen, info.priors, pools, weights)
+    return cand, chosen
+
+
 def _candidates(
-    robot: Robot, n: int, seed: int, sockets: np.ndarray | None, margin: float, clearance: float,
-    point: np.ndarray, instrument: np.ndarray | None, reach: float | None,
+    robot: Robot, n: int, seed: int, sockets: np.ndarray | None, where: Feasible
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """Feasible candidates, and the socket each is at (fixed points) or None."""
+    w = where
     if sockets is not None:
-        return socket_candidates(robot, sockets, n, seed, margin, clearance, point)
-    return candidate_poses(robot, n, seed, margin, 0.0, clearance, point, instrument, reach), None
+        return socket_candidates(robot, sockets, n, seed, w.margin, w.clearance, w.point)
+    return candidate_poses(robot, n, seed, w.margin, 0.0, w.clearance, w.point, w.instrument, w.reach), None
 
 
 def _check(measure: str, criterion: str, n_poses: int, candidates: int, sockets: np.ndarray | None) -> None:
