@@ -262,7 +262,7 @@ import pincal.pipeline
 from pincal.cli import main
 
 def slow_solve(*args, **kwargs):
-    print("fitting", flush=True)
+    print("fitting", file=sys.__stdout__, flush=True)  # the command's own stdout waits for its end
     time.sleep(60)
 
 pincal.pipeline.solve = slow_solve

@@ -72,6 +72,8 @@ def load_calibration(urdf: str | Path, sidecar: str | Path | None = None) -> Cal
     path = Path(sidecar) if sidecar is not None else sidecar_path(urdf)
     try:
         side = json.loads(path.read_text(encoding="utf-8"))
+    except RecursionError:  # brackets nested deeper than Python's stack
+        raise DataError(f"cannot read the calibration sidecar {path}: nested too deeply") from None
     except FileNotFoundError:
         raise DataError(
             f"no calibration sidecar {path}: give the URDF written by 'pincal calibrate -o', "
@@ -79,6 +81,8 @@ def load_calibration(urdf: str | Path, sidecar: str | Path | None = None) -> Cal
         ) from None
     except (OSError, ValueError) as exc:
         raise DataError(f"cannot read the calibration sidecar {path}: {exc}") from None
+    if not isinstance(side, dict):
+        raise DataError(f"{path} is not a pincal calibration sidecar: not a JSON object")
     try:
         robot = load_robot(urdf, tip=side["tip"], joints=side.get("joints"))
         reg, spec = side.get("instrument_T_base"), side.get("extension")

@@ -232,11 +232,14 @@ def rigid_transform(matrix: object, what: str, tol: float = 1e-6) -> pin.SE3:
         tol: largest error of ``RᵀR = I``, ``det R = 1`` and the last row.
 
     Raises:
-        ValueError: not 4×4 numbers, not finite, or not a rotation and translation.
+        ValueError: not 4×4 numbers, not finite, a translation of 1e6 m or more (which overflows
+            the kinematics), or not a rotation and translation.
     """
     m = np.array(matrix, dtype=float)
     if m.shape != (4, 4) or not np.all(np.isfinite(m)):
         raise ValueError(f"{what}: not a 4x4 matrix of finite numbers")
+    if np.abs(m[:3, 3]).max() >= 1e6:
+        raise ValueError(f"{what}: a translation of 1e6 m or more")
     rot = m[:3, :3]
     if (
         np.abs(rot.T @ rot - np.eye(3)).max() > tol

@@ -139,6 +139,8 @@ def read_ur_kinematics(path: str | Path) -> URKinematics:
         doc = yaml.load(path.read_text(encoding="utf-8"), Loader=_loader())  # a SafeLoader
     except FileNotFoundError:
         raise DataError(f"kinematics file not found: {path}") from None
+    except RecursionError:  # brackets nested deeper than Python's stack
+        raise DataError(f"cannot read the kinematics YAML {path}: nested too deeply") from None
     except (OSError, UnicodeDecodeError, yaml.YAMLError, ValueError) as exc:
         raise DataError(f"cannot read the kinematics YAML {path}: {' '.join(str(exc).split())}") from None
     section = doc.get("kinematics") if isinstance(doc, dict) else None

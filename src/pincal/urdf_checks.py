@@ -11,7 +11,8 @@ already cleared) and refuses, with one line naming the joint or link:
 - a link that is the child of two joints, a closed loop, or more than one root link;
 - more than :data:`MAX_JOINTS` joints, or more than :data:`MAX_CHAIN` movable joints in a row;
 - an origin, axis or limit that is not three (or one) finite numbers, an axis of zero length,
-  or limits with ``lower > upper``.
+  limits with ``lower > upper``, or an origin or prismatic limit :data:`MAX_LENGTH` or more
+  from zero (the kinematics overflow).
 
 A nonzero axis that is not of unit length is accepted: Pinocchio, KDL and MoveIt all read it as
 its direction (they normalise it), and so does every pincal model.
@@ -32,6 +33,8 @@ MAX_JOINTS = 1000
 MAX_CHAIN = 100
 #: Axis length under which an axis counts as zero.
 MIN_AXIS = 1e-6
+#: Length [m] an origin coordinate or a prismatic limit stays below (no arm is a thousand km).
+MAX_LENGTH = 1e6
 _MOVING = ("revolute", "continuous", "prismatic")
 
 
@@ -125,8 +128,9 @@ def _check_joint(joint: ET.Element, name: str, kind: str, ns: str, path: str | P
     """A joint's origin, axis and limits are finite numbers, the axis nonzero, lower ≤ upper."""
     origin = joint.find(f"{ns}origin")
     if origin is not None:
-        for attr in ("xyz", "rpy"):
-            _numbers(origin, attr, 3, f"joint {name!r} origin", path)
+        _numbers(origin, "rpy", 3, f"joint {name!r} origin", path)
+        xyz = _numbers(origin, "xyz", 3, f"joint {name!r} origin", path)
+        _metres(xyz, f"joint {name!r} origin xyz", path)
     if kind not in _MOVING:
         return
     axis_element = joint.find(f"{ns}axis")
@@ -142,6 +146,8 @@ def _check_joint(joint: ET.Element, name: str, kind: str, ns: str, path: str | P
         return
     lower = _numbers(limit, "lower", 1, f"joint {name!r} limit", path)
     upper = _numbers(limit, "upper", 1, f"joint {name!r} limit", path)
+    if kind == "prismatic":
+        _metres([*(lower or []), *(upper or [])], f"prismatic joint {name!r} limit", path)
     if lower is not None and upper is not None and lower[0] > upper[0]:
         raise RobotError(
             f"URDF {path}: joint {name!r} has limit lower {lower[0]:g} above upper {upper[0]:g}: "
@@ -162,6 +168,15 @@ def _numbers(element: ET.Element, attr: str, count: int, what: str, path: str | 
         need = "a finite number" if count == 1 else f"{count} finite numbers"
         raise RobotError(f"URDF {path}: {what} {attr}={text!r} is not {need}: fix the URDF")
     return values
+
+
+def _metres(values: list[float] | None, what: str, path: str | Path) -> None:
+    """Refuse lengths [m] of :data:`MAX_LENGTH` or more."""
+    if values and max(abs(v) for v in values) >= MAX_LENGTH:
+        raise RobotError(
+            f"URDF {path}: {what} holds {max(values, key=abs):g} m, {MAX_LENGTH:g} m or more: "
+            "fix the URDF (its lengths are in metres)"
+        )
 
 
 def _names(elements: list[ET.Element], what: str, path: str | Path) -> list[str]:

@@ -1,15 +1,19 @@
 """The ``pincal`` command line: :func:`main` and one module per command.
 
-Exit codes: 0 success, its warnings (``pincal: warning: ...``) said at the end; 2 unusable
-input, with one ``pincal: error: ...`` line on stderr and nothing else; 130 interrupted
+Exit codes: 0 success, its output printed and its warnings (``pincal: warning: ...``) said at
+the end; 2 unusable input, with one ``pincal: error: ...`` line on stderr and nothing else (not
+the tables of a result then refused, on stdout); 130 interrupted
 (Ctrl-C), with one such line and no partial output; 141 standard output closed early
 (``| head``), quietly; 1 a bug.
 """
 
 from __future__ import annotations
 
+import contextlib
 import importlib
+import io
 import os
+import signal
 import sys
 from collections.abc import Sequence
 
@@ -28,8 +32,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         from ..threads import blas_threads
 
         command = importlib.import_module(f"{__name__}.{args.command}")  # one module per command
-        with blas_threads(args.threads):
+        printed = io.StringIO()  # said when the run ends well: a refused result prints nothing
+        with blas_threads(args.threads), contextlib.redirect_stdout(printed):
             code = int(command.run(args))
+        sys.stdout.write(printed.getvalue())
+        sys.stdout.flush()
         for warning in getattr(args, "warnings", []):  # kept till now: a failing run says one line
             print(f"pincal: warning: {warning}", file=sys.stderr)
         return code
@@ -43,6 +50,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no error at exit's flush
         return 141
     finally:
+        if argv is None:  # the process ends now: a late Ctrl-C must not kill it with the signal
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
         forget_inputs()
 
 

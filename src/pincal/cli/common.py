@@ -20,6 +20,7 @@ from ..fixed_points import parse_point_distances
 from ..plausibility import Verdict, judge_calibration
 from ..point_files import read_socket_folder
 from ..robots import BUNDLED, Robot, bundled_urdf, load_robot
+from .past_tip import check_past_tip
 
 if TYPE_CHECKING:
     from ..calibration import Calibration
@@ -151,6 +152,7 @@ def load_data(path: Path, robot: Robot, args: argparse.Namespace) -> Dataset:
         warn(args, f"{path}: {beyond} joint value(s) beyond the URDF limits, {limits}")
     if data.labels is None:  # fixed points have no measured positions to compare
         check_scale(robot, data, args.units, args.degrees)
+        check_past_tip(robot, data, path, args, robot_options(args))
     elif args.degrees and small_angles(robot, data):
         warn(
             args,

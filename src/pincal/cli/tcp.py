@@ -8,7 +8,7 @@ import json
 import numpy as np
 
 from ..data import UNITS, atomic_write
-from ..errors import ImplausibleError
+from ..errors import DataError, ImplausibleError
 from ..robots import load_robot
 from ..tool import calibrate_tool, read_flange_poses
 from ..tool_plausibility import judge_tool
@@ -18,6 +18,7 @@ from .common import check_outputs, robot_options, urdf_path, warn
 def run(args: argparse.Namespace) -> int:
     """Run the command; 0 on success."""
     check_outputs(args, [args.json], {"poses file": args.poses, "input URDF": urdf_path(args.robot)})
+    _robot_only(args)
     robot = load_robot(args.robot, tip=args.tip, **robot_options(args)) if args.robot else None
     rotations, positions = read_flange_poses(
         args.poses, args.units, args.columns, robot, args.degrees, args.quaternion_order
@@ -59,3 +60,24 @@ def run(args: argparse.Namespace) -> int:
         atomic_write(args.json, json.dumps(result, indent=2) + "\n")
         print(f"written to {args.json}")
     return 0
+
+
+def _robot_only(args: argparse.Namespace) -> None:
+    """Refuse the options that read joint columns with a robot when there is no ``--robot``
+    (they would be ignored, and the poses read as flange poses)."""
+    if args.robot is not None:
+        return
+    given = {
+        "--tip": args.tip is not None,
+        "--degrees": args.degrees,
+        "--xacro-arg": bool(args.xacro_arg),
+        "--package-path": bool(args.package_path),
+        "--kinematics": args.kinematics is not None,
+    }
+    named = [flag for flag, on in given.items() if on]
+    if named:
+        degrees = " (the angles a,b,c are in degrees without it)" if args.degrees else ""
+        raise DataError(
+            f"{', '.join(named)}: only with --robot ROBOT, which reads joint columns: give --robot, "
+            f"or drop {' '.join(named)}{degrees}"
+        )

@@ -33,6 +33,10 @@ def vectors3(text: str) -> Any:
     return np.array([vector3(item) for item in text.replace(" ", "").split(";") if item])
 
 
+#: Largest ``--params @FILE`` read [bytes].
+_MAX_LIST_BYTES = 1_000_000
+
+
 def parameters(text: str) -> str | tuple[str, ...]:
     """``auto``, ``all``, ``NAME,NAME,...`` or ``@FILE`` (names one a line or comma separated;
     ``#`` starts a comment)."""
@@ -41,7 +45,11 @@ def parameters(text: str) -> str | tuple[str, ...]:
     if text.startswith("@"):
         path = Path(text[1:])
         try:
-            lines = path.read_text().splitlines()
+            with open(path, "rb") as fh:  # a list of names is small: /dev/zero would never end
+                data = fh.read(_MAX_LIST_BYTES + 1)
+            if len(data) > _MAX_LIST_BYTES:
+                raise argparse.ArgumentTypeError(f"the parameter list {path} is larger than 1 MB")
+            lines = data.decode("utf-8-sig").splitlines()
         except (OSError, UnicodeDecodeError) as exc:
             raise argparse.ArgumentTypeError(f"cannot read the parameter list {path}: {exc}") from None
         names = name_list(",".join(line.split("#", 1)[0] for line in lines))
