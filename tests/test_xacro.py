@@ -142,3 +142,35 @@ def test_a_broken_xacro_is_one_line(capsys: pytest.CaptureFixture[str], tmp_path
         '<?xml version="1.0"?>\n<!DOCTYPE r [<!ENTITY e SYSTEM "file:///etc/passwd">]>\n<robot/>'
     )
     assert "DOCTYPE" in one_error_line(capsys, "twists", entity)
+
+
+@pytest.mark.parametrize(
+    ("expression", "expected"),
+    [("9**9**9", "did not finish in 1 s"), ("len('a' * 10**10)", "cannot process xacro")],
+    ids=["endless", "memory"],
+)
+def test_a_hostile_expression_is_stopped(
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+    tmp_path: Path,
+    expression: str,
+    expected: str,
+) -> None:
+    """A xacro whose expression computes without end, or asks for 10 GB: one line naming the file,
+    within the time limit (1 s here), and the command stays usable after it."""
+    import time
+
+    import pincal.descriptions
+
+    monkeypatch.setattr(pincal.descriptions, "XACRO_SECONDS", 1.0)
+    hostile = tmp_path / "hostile.urdf.xacro"
+    hostile.write_text(
+        '<?xml version="1.0"?>\n<robot xmlns:xacro="http://www.ros.org/wiki/xacro" '
+        f'name="${{{expression}}}"><link name="base"/></robot>'
+    )
+    start = time.monotonic()
+    line = one_error_line(capsys, "twists", hostile)
+    assert time.monotonic() - start < 10.0  # [s]: the limit and a fork, not the computation
+    assert expected in line and "hostile.urdf.xacro" in line
+    robot = pincal.load_robot(XACRO, package_paths={"pincal_test_parts": PARTS})
+    assert robot.n_joints == 6

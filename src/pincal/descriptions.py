@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from .errors import RobotError
+from .sandbox import run_limited
 
 if TYPE_CHECKING:
     from .ur_yaml import URKinematics
@@ -27,6 +28,9 @@ if TYPE_CHECKING:
 #: Suffixes of the robot files ``load_robot`` reads (a ``.urdf.xacro`` ends in ``.xacro``).
 URDF_SUFFIXES = (".urdf", ".xacro")
 _XACRO_LOCK = threading.Lock()  # xacro keeps its state in module globals
+#: Time [s] and memory [B] a xacro's processing may take (its expressions are Python).
+XACRO_SECONDS = 30.0
+XACRO_MEMORY = 2_000_000_000
 _SEARCH_DEPTH = 3  # [folders] below each ROS_PACKAGE_PATH entry
 _DOCTYPE = re.compile(r"<!DOCTYPE", re.IGNORECASE)
 _DECLARATION = re.compile(r"<!(ENTITY|ELEMENT|ATTLIST)|\b(SYSTEM|PUBLIC)\b")
@@ -44,7 +48,10 @@ class PackageNotFoundError(RobotError):
             f"{where} needs ROS package {package!r} ($(find {package})), which is not found: give "
             f"--package-path {package}=DIR (the folder holding its package.xml), or set ROS_PACKAGE_PATH"
         )
-        self.package = package
+        self.package, self.where = package, where
+
+    def __reduce__(self) -> tuple[type[PackageNotFoundError], tuple[str, str]]:
+        return type(self), (self.package, self.where)  # sent back by a child process
 
 
 def is_xacro(path: str | Path) -> bool:
@@ -192,6 +199,10 @@ def xacro_to_urdf(
 ) -> str:
     """The URDF text a xacro file gives, as ``xacro FILE NAME:=VALUE ...`` would print it.
 
+    xacro evaluates the file's ``${...}`` expressions as Python: a hostile file can compute for
+    ever (``${9**9**9}``) or fill the memory, so the processing runs within :data:`XACRO_SECONDS`
+    and :data:`XACRO_MEMORY` (:func:`pincal.sandbox.run_limited`).
+
     Args:
         path: the ``.xacro`` file.
         xacro_args: values of its ``<xacro:arg>`` (NAME -> VALUE, as on xacro's command line).
@@ -199,17 +210,40 @@ def xacro_to_urdf(
 
     Raises:
         PackageNotFoundError: a ``$(find PKG)`` no folder answers.
-        RobotError: the xacro package is missing, or xacro refused the file.
+        RobotError: the xacro package is missing, xacro refused the file, or it went past the
+            time or memory limit.
     """
     try:
-        import xacro
+        import xacro  # noqa: F401
     except ImportError:
         raise RobotError(f"{path} is a xacro: install the xacro package (pip install xacro)") from None
     path = Path(path).resolve()
-    with _XACRO_LOCK, _resolving(package_paths):
+    with _XACRO_LOCK:
+        text, includes = run_limited(
+            _process,
+            (path, dict(xacro_args or {}), package_paths),
+            seconds=XACRO_SECONDS,
+            memory=XACRO_MEMORY,
+            what=f"cannot process xacro {path}",
+        )
+    declared = _declared_args([path, *(Path(f) for f in includes)])
+    unknown = sorted(set(xacro_args or {}) - declared)
+    if unknown:
+        have = ", ".join(sorted(declared)) or "none"
+        raise RobotError(f"--xacro-arg {unknown[0]}: {path.name} declares no such argument (it has: {have})")
+    return text
+
+
+def _process(
+    path: Path, xacro_args: dict[str, str], package_paths: Mapping[str, Path] | None
+) -> tuple[str, list[str]]:
+    """xacro's processing of ``path``: the URDF text and the files it included."""
+    import xacro
+
+    with _resolving(package_paths):
         xacro.all_includes = []
         try:
-            doc = xacro.process_file(str(path), mappings=dict(xacro_args or {}), verbosity=0)
+            doc = xacro.process_file(str(path), mappings=xacro_args, verbosity=0)
         except Exception as exc:  # xacro raises many kinds of error for a broken file
             cause = _cause(exc)
             if isinstance(cause, PackageNotFoundError):
@@ -219,12 +253,7 @@ def xacro_to_urdf(
             raise RobotError(f"cannot process xacro {path}: {' '.join(str(exc).split())}") from None
         finally:
             xacro.init_stacks(None)
-        declared = _declared_args([path, *(Path(f) for f in xacro.all_includes)])
-    unknown = sorted(set(xacro_args or {}) - declared)
-    if unknown:
-        have = ", ".join(sorted(declared)) or "none"
-        raise RobotError(f"--xacro-arg {unknown[0]}: {path.name} declares no such argument (it has: {have})")
-    return str(doc.toprettyxml(indent="  "))
+        return str(doc.toprettyxml(indent="  ")), list(xacro.all_includes)
 
 
 _ARG = re.compile(r"<\s*[\w.-]+:arg\b[^>]*?\bname\s*=\s*[\"']([^\"']+)[\"']")
