@@ -27,6 +27,7 @@ import pytest
 
 import pincal
 from pincal.cli import main
+from pincal.ur_frames import JOINTS
 
 N_FIT = 30
 N_TEST = 20
@@ -198,15 +199,6 @@ def scale_columns(names: Sequence[str], factor: float) -> Edit:
 
     return edit
 
-
-JOINTS = (
-    "shoulder_pan_joint",
-    "shoulder_lift_joint",
-    "elbow_joint",
-    "wrist_1_joint",
-    "wrist_2_joint",
-    "wrist_3_joint",
-)
 
 #: id: (CSV edit, extra arguments, words the error line must hold). Row numbers are data rows.
 DATA_CASES: dict[str, tuple[Edit | None, tuple[str, ...], tuple[str, ...]]] = {

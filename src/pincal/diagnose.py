@@ -145,8 +145,8 @@ class Diagnosis:
 
     def summary(self) -> str:
         """One line a person can act on."""
-        note = f"; {self.untried}" if self.untried else ""
-        return self._named() + note
+        untried = self.untried
+        return self._named() + (f"; {untried}" if untried else "")
 
     def _named(self) -> str:
         """What the diagnosis names, with its gain."""
