@@ -210,3 +210,32 @@ def test_listed_cases_end_in_one_line(
         assert word in line, (word, line)
     assert files["pos"].read_bytes() == before
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("value", ["1e160", "1e300"])
+@pytest.mark.parametrize("quaternions", [False, True], ids=["euler", "quaternion"])
+def test_tcp_refuses_flange_positions_no_instrument_measures(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, value: str, quaternions: bool
+) -> None:
+    """A flange position of 1e160 m (a fuzzed cell) is one error line naming the columns, with
+    no overflow warning on the way (it used to overflow through the fit to "scatter by inf m")."""
+    import warnings
+
+    rng = np.random.default_rng(0)
+    rows = []
+    for k in range(6):
+        rotation = pin.exp3(rng.normal(0.0, 0.5, 3))
+        position = [800.0, 100.0, 300.0] - rotation @ np.array([10.0, -20.0, 150.0])  # [mm]
+        turn = pin.Quaternion(rotation)
+        zyx = np.rad2deg(pin.rpy.matrixToRpy(rotation))[::-1]  # a, b, c [deg]
+        angles = [turn.w, turn.x, turn.y, turn.z] if quaternions else list(zyx)
+        cells = [repr(float(v)) for v in [*position, *angles]]
+        rows.append([value, *cells[1:]] if k == 2 else cells)
+    header = "x,y,z,qw,qx,qy,qz" if quaternions else "x,y,z,a,b,c"
+    data = tmp_path / "flange.csv"
+    data.write_text("\n".join([header, *(",".join(row) for row in rows)]) + "\n")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        line = one_error_line(capsys, "tcp", data, "--units", "mm")
+    assert "flange positions x,y,z" in line
+    assert not [w for w in caught if issubclass(w.category, RuntimeWarning)], caught

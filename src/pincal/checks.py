@@ -38,6 +38,7 @@ SYSTEMATIC = 0.1
 #: with a warning too: one mistyped value is a lone row, limits a little too tight show again
 #: (MUKCa's Gen3 lite: joint_6 3.3 deg past in 2 of 37 rows of one placement).
 REPEATED_SLACK = np.deg2rad(10.0)
+MAX_SPREAD = 1e6  # [m]: measured points farther apart than this are a wrong unit or a bad cell
 SCALE_RATIO = 10.0  # measured spread / tip spread beyond which the units are suspect
 LOCK_TOLERANCE = 1e-3  # [rad or m]: a locked joint's column may move this much and count as still
 _QUAT = ("qw", "qx", "qy", "qz")
@@ -167,11 +168,9 @@ def check_scale(robot: Robot, data: Dataset, units: str = "m", degrees: bool = F
     tips = np.array([robot.frame_placement(q).translation for q in data.q])
     with np.errstate(over="ignore", invalid="ignore"):
         tip_spread = spread(tips)
-        measured = spread(data.points)
     if not np.isfinite(tip_spread):
         raise DataError("the URDF puts the tip beyond any finite distance: check its joint origins")
-    if not np.isfinite(measured) or measured > 1e6:  # [m]
-        raise DataError(f"the measured points x,y,z are {measured:.3g} m apart or more: check their unit")
+    measured = bounded_spread(data.points, "measured points x,y,z")
     if len(data) < 3:
         return
     ratio = measured / tip_spread if tip_spread > 0 else np.inf
@@ -267,3 +266,16 @@ def check_locked(path: str | Path, names: Sequence[str], values: np.ndarray, deg
 def spread(points: np.ndarray) -> float:
     """RMS distance of points from their centroid [m]."""
     return float(np.sqrt(np.mean(np.sum((points - points.mean(axis=0)) ** 2, axis=1))))
+
+
+def bounded_spread(points: np.ndarray, what: str) -> float:
+    """:func:`spread` of measured points (N, 3) [m], refused when no instrument measures it.
+
+    Raises:
+        DataError: the spread is not finite or above :data:`MAX_SPREAD`, naming ``what``.
+    """
+    with np.errstate(over="ignore", invalid="ignore"):
+        measured = spread(points)
+    if not np.isfinite(measured) or measured > MAX_SPREAD:
+        raise DataError(f"the {what} are {measured:.3g} m apart or more: check their unit")
+    return measured

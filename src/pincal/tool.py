@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from .checks import bounded_spread
 from .data import UNITS, check_quaternions, csv_columns, read_table
 from .errors import DataError
 from .options import ORIENTATIONS
@@ -323,8 +324,10 @@ def read_flange_poses(
         check_quaternions(path, values[:, 3:])
         quats = values[:, 3:] / np.linalg.norm(values[:, 3:], axis=1, keepdims=True)
         rotations = np.array([pin.Quaternion(*qt).toRotationMatrix() for qt in quats])
+        bounded_spread(values[:, :3] * UNITS[units], "flange positions x,y,z")
         return rotations, values[:, :3]
     values = read_table(
         path, ["x", "y", "z", "a", "b", "c"], "x,y,z and a,b,c [deg] (or qw,qx,qy,qz)", rename
     )
+    bounded_spread(values[:, :3] * UNITS[units], "flange positions x,y,z")
     return euler_zyx(*np.deg2rad(values[:, 3:]).T), values[:, :3]
