@@ -1070,8 +1070,8 @@ class _FifoWatch:
     """Named pipes that record whether anything opened them for reading.
 
     A reader's ``open`` blocks until a writer comes; a thread polls each pipe with a non-blocking
-    write-open, which succeeds only while a reader waits: it records the pipe and closes it (the
-    reader sees an empty file instead of hanging).
+    write-open, which succeeds only while a reader has it open: it records the pipe (once) and
+    closes it (the reader sees an empty file instead of hanging).
     """
 
     def __init__(self, paths: Sequence[Path]) -> None:
@@ -1089,7 +1089,8 @@ class _FifoWatch:
                     fd = os.open(path, os.O_WRONLY | os.O_NONBLOCK)
                 except OSError:
                     continue
-                self.opened.append(path)
+                if path not in self.opened:  # a reader still closing is seen again: once is enough
+                    self.opened.append(path)
                 os.close(fd)
             self._stop.wait(0.001)
 
