@@ -255,6 +255,34 @@ def test_ctrl_c_while_writing(
     _unchanged(tmp_path, before)
 
 
+def test_a_real_ctrl_c_between_the_renames_leaves_new_files_together(
+    capfd: pytest.CaptureFixture[str], data: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """SIGINT arrives after the first of three renames: it is held until the last one is done, so
+    the URDF, its sidecar and the report are all new (never a new URDF beside an old sidecar),
+    and the command then ends as interrupted (130), with no temporary file left."""
+    report, urdf, _ = _old_outputs(tmp_path)
+    renames: list[str] = []
+    real_replace = os.replace
+
+    def replace(src: str, dst: str | Path) -> None:
+        real_replace(src, dst)
+        renames.append(str(dst))
+        if len(renames) == 1:
+            os.kill(os.getpid(), signal.SIGINT)
+
+    monkeypatch.setattr(pincal.files.os, "replace", replace)
+    code, _, err = _run(capfd, *_calibrate(data, "-o", urdf, "--report", report, "--force"))
+    assert code == 130, err
+    assert len(renames) == 3
+    assert json.loads(report.read_text(encoding="utf-8")).get("old") is None
+    sidecar = json.loads(pincal.urdf_writer.sidecar_path(urdf).read_text(encoding="utf-8"))
+    assert sidecar and urdf.read_text(encoding="utf-8").startswith("<?xml")
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        [report.name, urdf.name, pincal.urdf_writer.sidecar_path(urdf).name]
+    )
+
+
 #: A child that runs ``pincal calibrate`` whose fit waits to be interrupted.
 _CHILD = """
 import sys, time

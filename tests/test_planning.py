@@ -119,6 +119,12 @@ def test_plan_errors_say_what_to_fix(get_robot, tmp_path) -> None:
     robot = get_robot("ur5")
     with pytest.raises(pincal.IdentifiabilityError, match="at least"):
         plan_poses(robot, 8, candidates=200)
+    # distances among 9 points fix 3·9 - 6 = 21 coordinates: not 21 parameters (it used to plan
+    # them, with a condition number of 4e16); 10 points fix 24
+    with pytest.raises(pincal.IdentifiabilityError, match="21 independent equations.*at least 10"):
+        plan_poses(robot, 9, measure="distance", candidates=200)
+    distance = plan_poses(robot, 10, measure="distance", candidates=200)
+    assert len(distance.names) == 21 and distance.planned.condition_number < 1e4
     with pytest.raises(pincal.DataError, match="unknown measure"):
         plan_poses(robot, 20, measure="laser")
     with pytest.raises(pincal.DataError, match="reach"):

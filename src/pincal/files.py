@@ -8,8 +8,9 @@ name in the process gets it (a CSV's header is read before its table). Anything 
 Outputs (:func:`atomic_write`, :func:`atomic_write_many`): only regular files are written. A
 symlink is written through (its target is replaced, the link stays); a folder, a device, a named
 pipe or a socket is refused. Each text goes to a temporary file beside its target, and only when
-every one is complete are they renamed over their targets, so a full disk, a folder that refuses
-the file or Ctrl-C leave the old files (or none) and no partial one. A new file gets the usual
+every one is complete are they renamed over their targets (Ctrl-C and SIGTERM held back during
+the renames), so a full disk, a folder that refuses the file or Ctrl-C leave the old files (or
+none) and no partial one, nor a new file beside an old one. A new file gets the usual
 permissions (0666 less the process umask), a replaced one keeps its own.
 """
 
@@ -17,10 +18,13 @@ from __future__ import annotations
 
 import errno
 import os
+import signal
 import stat
 import sys
 import tempfile
-from collections.abc import Sequence
+import threading
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 
 from .errors import DataError, OutputError
@@ -144,14 +148,37 @@ def atomic_write_many(files: Sequence[tuple[str | Path, str | bytes]]) -> None:
                 _write_all(fd, text.encode("utf-8") if isinstance(text, str) else text)
             finally:
                 os.close(fd)
-        for tmp, target in staged:
-            os.replace(tmp, target)
+        with _interrupts_held():  # a Ctrl-C between two renames would leave old and new side by side
+            for tmp, target in staged:
+                os.replace(tmp, target)
     except OSError as exc:
         _remove(staged)
         raise OutputError(f"cannot write {current}: {exc.strerror or exc}{_hint(exc)}") from None
     except BaseException:
         _remove(staged)
         raise
+
+
+@contextmanager
+def _interrupts_held() -> Iterator[None]:
+    """Hold SIGINT and SIGTERM back for the block: one that arrives in it is raised again when it
+    ends, with the handler it would have met (a signal mask would not do: the kernel gives a
+    process's signal to any thread that does not block it, BLAS's own threads included)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield  # handlers can only be set in the main thread, where the interruption would land
+        return
+    arrived: list[int] = []
+    handlers = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    handlers = {s: h for s, h in handlers.items() if h is not None}  # None: not Python's to set
+    for number in handlers:
+        signal.signal(number, lambda signum, _frame: arrived.append(signum))
+    try:
+        yield
+    finally:
+        for number, handler in handlers.items():
+            signal.signal(number, handler)
+        if arrived:
+            signal.raise_signal(arrived[0])
 
 
 def _write_all(fd: int, data: bytes) -> None:

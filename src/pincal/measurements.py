@@ -34,10 +34,7 @@ from .errors import DataError
 from .fixed_points import PointDistance, check_distances, point_index, point_means, points_rows
 from .kinematics import Chain, Frames, forward, jlog3, log3, stacked_dot, twist_columns
 from .models import Model
-from .options import MEASURES
-
-#: Default weight of orientation residuals [m/rad]: 1 mrad counts as 0.1 mm.
-ROTATION_WEIGHT = 0.1
+from .options import MEASURES, ROTATION_WEIGHT
 
 
 def all_pairs(n: int) -> np.ndarray:

@@ -11,6 +11,8 @@ from __future__ import annotations
 MODELS = ("placements", "poe", "mdh", "offsets")
 #: What is measured (:mod:`pincal.measurements`).
 MEASURES = ("position", "pose", "distance", "points")
+#: Default weight of orientation residuals [m/rad]: 1 mrad counts as 0.1 mm.
+ROTATION_WEIGHT = 0.1
 #: Losses of ``scipy.optimize.least_squares`` (:mod:`pincal.solver`).
 LOSSES = ("linear", "soft_l1", "huber", "cauchy")
 #: Length units of data files -> metres.

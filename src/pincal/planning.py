@@ -105,11 +105,17 @@ class Plan:
         ]
         for label, d in (("planned", self.planned), ("random", self.random)):
             lines.append(
-                f"  {label:8s} {d.condition_number:7.1f} {d.log_det:10.1f} {d.std[~rad].max() * 1e3:11.4f} "
+                f"  {label:8s} {_condition(d.condition_number)} {d.log_det:10.1f} "
+                f"{d.std[~rad].max() * 1e3:11.4f} "
                 f"{d.std[rad].max() * 1e3 if rad.any() else 0.0:13.4f} {d.predicted_rms_mm:18.4f} "
                 f"{d.model_rms_mm:15.4f}"
             )
         return "\n".join(lines)
+
+
+def _condition(value: float) -> str:
+    """A condition number in the table's 7 characters."""
+    return f"{value:7.1f}" if value < 1e5 else f"{value:7.1e}"
 
 
 def _design(info: Information, q: np.ndarray, labels: np.ndarray | None, weight: np.ndarray) -> Design:
@@ -274,14 +280,22 @@ def _check(measure: str, criterion: str, n_poses: int, candidates: int, sockets:
         raise DataError(f"--poses {n_poses} must be between 1 and the number of candidates ({candidates})")
 
 
+def _equations(measure: str, n_poses: int) -> int:
+    """Independent equations of ``n_poses`` poses: 3 or 6 each, and for distances between N
+    points at most their 3N - 6 coordinates up to a rigid motion (and at most N(N-1)/2 pairs)."""
+    if measure == "distance":
+        return max(0, min(3 * n_poses - 6, n_poses * (n_poses - 1) // 2))
+    return n_poses * (6 if measure == "pose" else 3)
+
+
 def _check_equations(measure: str, n_poses: int, n_free: int) -> None:
-    """Refuse a plan with fewer equations than identifiable parameters."""
-    per_pose = {"position": 3, "pose": 6, "points": 3}.get(measure, (n_poses - 1) / 2)
-    if n_poses * per_pose <= n_free:
-        need = {"position": n_free // 3 + 2, "points": n_free // 3 + 2, "pose": n_free // 6 + 2}.get(measure)
+    """Refuse a plan with fewer independent equations than identifiable parameters."""
+    equations = _equations(measure, n_poses)
+    if equations <= n_free:
+        need = next(n for n in range(n_poses, n_poses + n_free + 8) if _equations(measure, n) > n_free)
         raise IdentifiabilityError(
-            f"{n_poses} poses give {int(n_poses * per_pose)} equations for {n_free} identifiable parameters: "
-            f"plan more poses" + (f" (at least {need})" if need else "")
+            f"{n_poses} poses give {equations} independent equations for {n_free} identifiable "
+            f"parameters: plan more poses (at least {need})"
         )
 
 

@@ -14,6 +14,7 @@ from ..ur_yaml import DEFAULT_DH, read_ur_kinematics, robot_ur_chain, write_ur_k
 from ..urdf_writer import check_frame_name, corrected_files, sidecar_path
 from .common import (
     chain,
+    check_applicable,
     check_outputs,
     end_progress,
     fit_options,
@@ -26,6 +27,8 @@ from .common import (
 
 #: ``--nested`` -> the ``nested`` argument of :func:`pincal.calibrate`.
 NESTED = {"auto": None, "yes": True, "no": False}
+#: ``-o`` suffixes of files that are not a robot description (a mistyped ``--report`` or data file).
+NOT_A_ROBOT = (".csv", ".json", ".txt", ".png", ".pdf", ".svg")
 
 
 def _check_arguments(args: argparse.Namespace) -> None:
@@ -39,6 +42,11 @@ def _check_arguments(args: argparse.Namespace) -> None:
         raise DataError("DATA and --test are both '-': standard input holds one file, give the other by name")
     if args.output is not None and (args.output.is_dir() or not args.output.name):
         raise DataError(f"-o {args.output} is a folder: give a file name such as robot_calibrated.urdf")
+    if args.output is not None and args.output.suffix.lower() in NOT_A_ROBOT:
+        raise DataError(
+            f"-o {args.output}: the corrected robot is a URDF or a UR kinematics YAML, not a "
+            f"{args.output.suffix} file: name it .urdf or .yaml (--report FILE.json for the report)"
+        )
     side = None if args.output is None else sidecar_path(args.output)
     check_outputs(
         args,
@@ -57,6 +65,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"{args.robot} in ur_description's frames, from its default kinematics (nominal)")
     data = load_data(args.data, robot, args)
     test = load_data(args.test, robot, args) if args.test is not None else None
+    check_applicable(args, data)
     if args.holdout is not None:
         data, test = data.split(args.holdout, args.seed)
     progress = progress_line("diagnosis") if args.extend == "auto" else None

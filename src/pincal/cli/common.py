@@ -17,6 +17,7 @@ from ..data import UNITS, Dataset, csv_columns, read_csv
 from ..errors import DataError, ImplausibleError, OutputError
 from ..files import STDIN, output_target
 from ..fixed_points import parse_point_distances
+from ..options import ROTATION_WEIGHT
 from ..plausibility import Verdict, judge_calibration
 from ..point_files import read_socket_folder
 from ..robots import BUNDLED, Robot, bundled_urdf, load_robot
@@ -160,6 +161,26 @@ def load_data(path: Path, robot: Robot, args: argparse.Namespace) -> Dataset:
             "if the file holds radians, drop --degrees",
         )
     return data
+
+
+def check_applicable(args: argparse.Namespace, data: Dataset) -> None:
+    """Refuse, or warn of, options the data's measurement kind has no use for, instead of
+    ignoring them in silence: a user who passes ``--pairs gao`` means distance data."""
+    read = "points" if data.labels is not None else "pose" if data.has_orientation else "position"
+    kind = args.measure or read
+    if getattr(args, "pairs", "all") != "all" and kind != "distance":
+        raise DataError(f"--pairs {args.pairs} applies to --measure distance, not to {kind} data")
+    if args.point_distance is not None and kind != "points":
+        raise DataError(f"--point-distance applies to fixed-point data (a point column), not to {kind} data")
+    ignored = []
+    if args.rotation_weight != ROTATION_WEIGHT and kind != "pose":
+        ignored.append("--rotation-weight (pose data only)")
+    if args.quaternion_order != "wxyz" and not data.has_orientation:
+        ignored.append("--quaternion-order (the data has no quaternion)")
+    if args.instrument_frame == "base" and kind in ("distance", "points"):
+        ignored.append(f"--instrument-frame base ({kind} data needs no registration)")
+    if ignored:
+        warn(args, f"ignored for {kind} data: " + "; ".join(ignored))
 
 
 def plausible(cal: Calibration, data: Dataset, args: argparse.Namespace) -> Verdict:

@@ -7,14 +7,14 @@ import argparse
 from ..errors import DataError
 from ..robots import load_robot
 from ..urdf_writer import sidecar_path
-from .common import check_outputs, robot_options, urdf_path
+from .common import check_outputs, robot_options, urdf_path, warn
 
 
 def run(args: argparse.Namespace) -> int:
     """Run the command; 0 on success."""
     from ..calibrated_robot import load_calibration
     from ..compensate import compensate_program, write_program
-    from ..data import read_program
+    from ..data import Targets, csv_columns, read_program
 
     inputs = {
         "program": args.program,
@@ -25,6 +25,13 @@ def run(args: argparse.Namespace) -> int:
     cal = load_calibration(args.calibration)
     nominal = load_robot(args.robot, tip=cal.robot.tip, joints=cal.robot.joint_names, **robot_options(args))
     program = read_program(args.program, nominal, args.degrees, args.units)
+    targets = [c for c in ("x", "y", "z", "qw", "qx", "qy", "qz") if c in csv_columns(args.program)]
+    if not isinstance(program, Targets) and targets:
+        warn(
+            args,
+            f"{args.program} has a column per joint and {','.join(targets)}: the joint columns are "
+            "the commands, and those columns are not read (drop the joint columns to reach them as targets)",
+        )
     result = compensate_program(nominal, cal, program, task=args.task)
     n = len(result.status)
     if not result.ok.any():

@@ -13,6 +13,7 @@ from ..pipeline import calibrate
 from ..selection import select_parameters
 from .common import (
     chain,
+    check_applicable,
     check_outputs,
     end_progress,
     fit_options,
@@ -33,6 +34,7 @@ def run(args: argparse.Namespace) -> int:
     check_outputs(args, [args.json], {"data file": args.data, "input URDF": urdf_path(args.robot)})
     robot = chain(args)
     data = load_data(args.data, robot, args)
+    check_applicable(args, data)
     if args.outliers:
         options = fit_options(args)
         screened = calibrate(robot, data, args.model, args.measure, outliers=args.outliers, **options)

@@ -8,7 +8,17 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 from ..errors import PincalError
-from ..options import BUNDLED, LOSSES, MEASURES, MODELS, ORIENTATIONS, QUATERNION_ORDERS, THRESHOLD, UNITS
+from ..options import (
+    BUNDLED,
+    LOSSES,
+    MEASURES,
+    MODELS,
+    ORIENTATIONS,
+    QUATERNION_ORDERS,
+    ROTATION_WEIGHT,
+    THRESHOLD,
+    UNITS,
+)
 from .numeric import count, folds, fraction, height, reach, rotation_weight, seed, sigmas, threads
 from .values import mapping, name_list, parameters, payload, vector3, vectors3
 
@@ -280,7 +290,7 @@ def _add_data_options(cmd: argparse.ArgumentParser) -> None:
     cmd.add_argument(
         "--rotation-weight",
         type=rotation_weight,
-        default=0.1,
+        default=ROTATION_WEIGHT,
         help="weight of orientation residuals for pose data [m/rad] (default 0.1: 1 mrad ~ 0.1 mm)",
     )
     _add_plausibility_options(cmd)
