@@ -141,3 +141,42 @@ def test_cli_calibrates_a_folder_of_placements(
     assert cal.test_after is not None
     assert np.isclose(written["test"]["after"]["rms_mm"], cal.test_after.rms_mm, rtol=1e-6)
     assert written["test"]["after"]["point_distance_error_mm"] is not None
+
+
+def test_rows_are_named_by_their_file(tmp_path: Path) -> None:
+    """Every row's name points at its own file and line: that line holds its joint values, also
+    after a subset (the names survive outlier screening and --holdout)."""
+    _, data = _experiment()
+    robot = pincal.load_robot("ur5")
+    folder = _write_folder(tmp_path, data)
+    read = read_socket_folder(folder, robot.joint_names)
+    part = read.subset(np.arange(3, len(read), 7))
+    for dataset in (read, part):
+        for row, q in zip(dataset.row_numbers, dataset.q):
+            name = dataset.row_name(int(row))
+            file, _, line = name.rpartition(" row ")
+            values = np.loadtxt(folder / file, delimiter=",", ndmin=2)
+            np.testing.assert_array_equal(values[int(line) - 1], q)
+    single = read_socket_folder(folder / "left", robot.joint_names)
+    assert single.row_name(N_ROWS // 2 + 1) == "hole_1.csv row 1"
+    assert pincal.Dataset(read.joint_names, read.q, read.points).row_name(5) == "row 5"
+
+
+def test_a_slipped_ball_is_named_by_its_file_and_row(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """A row of ``left/hole_1.csv`` recorded with the ball in the other socket (50 mm off): the
+    outlier screen leaves it out and the summary names ``left/hole_1.csv row 4``."""
+    _, data = _experiment()
+    folder = _write_folder(tmp_path, {p: data[p] for p in ("front", "left")})
+    path = folder / "left" / "hole_1.csv"
+    rows, other = np.loadtxt(path, delimiter=","), np.loadtxt(folder / "left" / "hole_0.csv", delimiter=",")
+    rows[3] = other[0]
+    np.savetxt(path, rows, delimiter=",")
+    capsys.readouterr()
+    args = ["calibrate", "ur5", folder, "--point-distance", "0,1=50", "--units", "mm", "--params", "all"]
+    code = main([str(a) for a in args])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    left_out = [line for line in out.splitlines() if line.startswith("outliers left out")]
+    assert len(left_out) == 1 and "left/hole_1.csv row 4 (" in left_out[0], out

@@ -43,6 +43,9 @@ class Dataset:
         labels: (N,) for fixed-point data, the index in ``point_names`` of the point each pose
             held the tip at (``points`` is then zero), else None.
         point_names: the names of the fixed points, as the ``point`` column gives them.
+        point_rows: for a folder of ``hole_<name>.csv`` files (one per point, read one after the
+            other), the row number of each file's first row, so that a row is named by its file
+            (:meth:`row_name`); else None.
     """
 
     joint_names: tuple[str, ...]
@@ -52,11 +55,21 @@ class Dataset:
     rows: np.ndarray | None = None
     labels: np.ndarray | None = None
     point_names: tuple[str, ...] = ()
+    point_rows: np.ndarray | None = None
 
     @property
     def row_numbers(self) -> np.ndarray:
         """Row number of each pose in its source (1 = first data row)."""
         return self.rows if self.rows is not None else np.arange(1, len(self.q) + 1)
+
+    def row_name(self, row: int) -> str:
+        """Where the pose of row number ``row`` is: ``row 7``, or for a folder of socket files
+        ``front/hole_1.csv row 7``."""
+        if self.point_rows is None or row < self.point_rows[0]:
+            return f"row {row}"
+        k = int(np.searchsorted(self.point_rows, row, side="right")) - 1
+        place, _, name = self.point_names[k].rpartition("/")
+        return f"{place + '/' if place else ''}hole_{name}.csv row {row - int(self.point_rows[k]) + 1}"
 
     def __len__(self) -> int:
         return len(self.q)

@@ -182,7 +182,7 @@ def _fit_checks(cal: Calibration, problem: Problem, size: float, loss: str) -> I
 
 
 def _rows(data: Dataset, mask: np.ndarray, most: int = 5) -> str:
-    rows = [str(int(r)) for r in data.row_numbers[mask]]
+    rows = [data.row_name(int(r)).removeprefix("row ") for r in data.row_numbers[mask]]
     return (", ".join(rows[:most]) + (" ..." if len(rows) > most else "")) if rows else "none"
 
 

@@ -90,11 +90,15 @@ def read_socket_folder(
     prism = np.asarray(prismatic if prismatic is not None else [False] * q.shape[1], dtype=bool)
     if prism.any():
         raise DataError(f"{folder}: MUKCa's layout is for revolute arms; write a CSV with a point column")
+    first = 1 + np.cumsum([0] + [len(b) for b in blocks[:-1]])
     return Dataset(
-        tuple(joint_names), q, np.zeros((len(q), 3)), labels=np.concatenate(labels), point_names=names
+        tuple(joint_names),
+        q,
+        np.zeros((len(q), 3)),
+        labels=np.concatenate(labels),
+        point_names=names,
+        point_rows=first,
     )
-
-
 
 
 def _placements(
@@ -106,4 +110,10 @@ def _placements(
     first = np.cumsum([0] + [len(part.point_names) for part in parts[:-1]])
     labels = np.concatenate([part.labels + k for part, k in zip(parts, first) if part.labels is not None])
     q = np.vstack([part.q for part in parts])
-    return Dataset(tuple(joint_names), q, np.zeros((len(q), 3)), labels=labels, point_names=names)
+    starts = np.cumsum([0] + [len(part) for part in parts[:-1]])
+    rows = np.concatenate(
+        [part.point_rows + start for part, start in zip(parts, starts) if part.point_rows is not None]
+    )
+    return Dataset(
+        tuple(joint_names), q, np.zeros((len(q), 3)), labels=labels, point_names=names, point_rows=rows
+    )

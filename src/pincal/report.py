@@ -238,6 +238,7 @@ def summary(cal: Calibration, data: Dataset | None = None) -> str:
             f"{', '.join(ident.gauges)} (base axes)"
         )
     if cal.excluded:
-        rows = ", ".join(f"row {row} ({size:.3f} mm)" for row, size in cal.excluded)
+        name = data.row_name if data is not None else (lambda row: f"row {row}")
+        rows = ", ".join(f"{name(row)} ({size:.3f} mm)" for row, size in cal.excluded)
         lines.append(f"outliers left out of the fit (residual far outside the others'): {rows}")
     return "\n".join(lines + choice_lines(cal, data))

@@ -41,7 +41,8 @@ def run(args: argparse.Namespace) -> int:
         if screened.excluded:
             rows = [row for row, _ in screened.excluded]
             data = data.subset(np.flatnonzero(~np.isin(data.row_numbers, rows)))
-            print(f"outliers left out (residual far outside the others'): rows {', '.join(map(str, rows))}")
+            named = ", ".join(data.row_name(row) for row in rows)
+            print(f"outliers left out (residual far outside the others'): {named}")
 
     params = None if args.params == "all" else args.params
     if params == "auto":
