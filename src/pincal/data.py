@@ -75,6 +75,11 @@ class Dataset:
         return len(self.q)
 
     @property
+    def measured(self) -> str:
+        """What the columns measure: ``points``, ``pose`` or ``position`` (never ``distance``)."""
+        return "points" if self.labels is not None else "pose" if self.has_orientation else "position"
+
+    @property
     def has_orientation(self) -> bool:
         """Whether the data holds measured orientations (full-pose data)."""
         return self.quaternions is not None

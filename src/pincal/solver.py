@@ -129,12 +129,14 @@ def set_up(
         if isinstance(tool, pin.SE3)
         else pin.SE3(np.eye(3), np.zeros(3) if tool is None else np.asarray(tool, float))
     )
-    kind = measure or ("pose" if data.has_orientation else "position")
-    kind = "points" if measure is None and data.labels is not None else kind
+    kind = measure or data.measured
     if kind == "points" and data.labels is None:
         raise DataError("--measure points needs a point column naming the fixed point of each row")
     if point_distances and kind != "points":
-        raise DataError("--point-distance is for --measure points (fixed-point data)")
+        raise DataError(f"--point-distance is for --measure points (fixed-point data), not for {kind} data")
+    if not (isinstance(pairs, str) and pairs == "all") and kind != "distance":
+        named = pairs if isinstance(pairs, str) else "(an array)"
+        raise DataError(f"--pairs {named} is for --measure distance, not for {kind} data")
     measurement = Measurement(
         kind=kind,
         instrument_T_base=instrument_T_base or pin.SE3.Identity(),

@@ -164,14 +164,9 @@ def load_data(path: Path, robot: Robot, args: argparse.Namespace) -> Dataset:
 
 
 def check_applicable(args: argparse.Namespace, data: Dataset) -> None:
-    """Refuse, or warn of, options the data's measurement kind has no use for, instead of
-    ignoring them in silence: a user who passes ``--pairs gao`` means distance data."""
-    read = "points" if data.labels is not None else "pose" if data.has_orientation else "position"
-    kind = args.measure or read
-    if getattr(args, "pairs", "all") != "all" and kind != "distance":
-        raise DataError(f"--pairs {args.pairs} applies to --measure distance, not to {kind} data")
-    if args.point_distance is not None and kind != "points":
-        raise DataError(f"--point-distance applies to fixed-point data (a point column), not to {kind} data")
+    """Warn of options the data's measurement kind has no use for, instead of ignoring them in
+    silence (those of another kind, ``--pairs`` and ``--point-distance``, the fit refuses)."""
+    kind = args.measure or data.measured
     ignored = []
     if args.rotation_weight != ROTATION_WEIGHT and kind != "pose":
         ignored.append("--rotation-weight (pose data only)")

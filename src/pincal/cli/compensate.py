@@ -25,7 +25,8 @@ def run(args: argparse.Namespace) -> int:
     cal = load_calibration(args.calibration)
     nominal = load_robot(args.robot, tip=cal.robot.tip, joints=cal.robot.joint_names, **robot_options(args))
     program = read_program(args.program, nominal, args.degrees, args.units)
-    targets = [c for c in ("x", "y", "z", "qw", "qx", "qy", "qz") if c in csv_columns(args.program)]
+    header = csv_columns(args.program)
+    targets = [c for c in ("x", "y", "z", "qw", "qx", "qy", "qz") if c in header]
     if not isinstance(program, Targets) and targets:
         warn(
             args,
