@@ -298,3 +298,49 @@ def test_what_cannot_be_a_ur_yaml_is_one_line(
     assert "--add-frame needs" in one_error_line(
         capsys, "calibrate", "ur5", data, "-o", tmp_path / "x.yaml", "--add-frame", "smr"
     )
+
+
+def test_compensate_takes_the_yaml(
+    capsys: pytest.CaptureFixture[str], files: dict[str, Path], tmp_path: Path
+) -> None:
+    """`compensate ur5 --kinematics factory.yaml robot_calibration.yaml PROGRAM`: the YAML (and its
+    sidecar's tool) is the calibrated robot, the factory YAML the program's nominal one; the true
+    robot, driven with the compensated commands, puts its tool where the nominal one did for the
+    program, within the calibration's held-out error."""
+    nominal = pincal.load_robot("ur5", kinematics=files["factory"])
+    truth, fit, test = pincal.simulate(nominal, 60, 30, seed=8)
+    pincal.write_csv(tmp_path / "fit.csv", fit)
+    pincal.write_csv(tmp_path / "test.csv", test)
+    out, report = tmp_path / "robot_calibration.yaml", tmp_path / "report.json"
+    code, _, err = run(
+        capsys, "calibrate", "ur5", tmp_path / "fit.csv", "--kinematics", files["factory"], "--params", "all",
+        "--test", tmp_path / "test.csv", "-o", out, "--report", report,
+    )  # fmt: skip
+    assert code == 0, err
+    program = nominal.random_configurations(40, np.random.default_rng(9), 0.1)
+    lines = [",".join(nominal.joint_names)] + [",".join(repr(float(v)) for v in q) for q in program]
+    (tmp_path / "program.csv").write_text("\n".join(lines) + "\n")
+    compensated = tmp_path / "compensated.csv"
+    code, text, err = run(
+        capsys, "compensate", "ur5", "--kinematics", files["factory"], out, tmp_path / "program.csv",
+        "-o", compensated,
+    )  # fmt: skip
+    assert code == 0, err
+    assert "compensated 40 of 40 rows" in text
+    loaded = pincal.load_calibration(out, nominal="ur5")
+    assert loaded.robot.urdf_text != nominal.urdf_text  # the calibrated chain, not the factory one
+    reg = loaded.instrument_T_base
+    assert reg is not None
+    commands = pincal.read_program(compensated, nominal, False, "m")
+    targets = np.array([(nominal.frame_placement(q) * loaded.tool).translation for q in program])
+
+    def reached(q: np.ndarray) -> np.ndarray:  # the true tool in the calibration's base frame
+        return (truth.target(q)[0] - reg.translation) @ reg.rotation
+
+    error = np.linalg.norm(reached(commands) - targets, axis=1)
+    before = np.linalg.norm(reached(program) - targets, axis=1)
+    fitted = json.loads(report.read_text())["test"]["after"]["rms_mm"] * 1e-3  # [m]
+    assert np.sqrt(np.mean(before**2)) > 20 * fitted  # the factory YAML is off: there is work to do
+    assert np.sqrt(np.mean(error**2)) < fitted  # the held-out RMS holds the measurement noise too
+    with pytest.raises(pincal.DataError, match="UR robot it applies to"):
+        pincal.load_calibration(out)

@@ -7,6 +7,7 @@ import json
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -15,6 +16,7 @@ from .effects import Extension, Payload
 from .errors import DataError
 from .kinematics import rigid_transform
 from .robots import Robot, load_robot
+from .ur_yaml import is_yaml
 from .urdf_writer import sidecar_path
 
 
@@ -57,18 +59,32 @@ class CalibratedRobot:
         return model, model.addFrame(frame)
 
 
-def load_calibration(urdf: str | Path, sidecar: str | Path | None = None) -> CalibratedRobot:
-    """Load what ``pincal calibrate -o FILE.urdf`` wrote: the URDF and ``FILE.calibration.json``.
+def load_calibration(
+    urdf: str | Path,
+    sidecar: str | Path | None = None,
+    *,
+    nominal: str | Path | None = None,
+    **robot_options: Any,
+) -> CalibratedRobot:
+    """Load what ``pincal calibrate -o FILE`` wrote: the corrected URDF (or UR kinematics YAML)
+    and ``FILE.calibration.json``.
 
     Args:
-        urdf: the corrected URDF.
-        sidecar: its sidecar (default: ``<stem>.calibration.json`` beside the URDF).
+        urdf: the corrected URDF, or the UR kinematics YAML written by ``-o FILE.yaml``.
+        sidecar: its sidecar (default: ``<stem>.calibration.json`` beside it).
+        nominal: for a YAML, the UR robot it applies to (a URDF or xacro path, or a bundled name).
+        robot_options: for a YAML, :func:`pincal.load_robot`'s ``xacro_args``, ``package_paths``
+            and ``inertias`` for ``nominal`` (its ``kinematics`` is the YAML).
 
     Raises:
-        DataError: the sidecar is missing or is not a pincal sidecar.
+        DataError: the sidecar is missing or is not a pincal sidecar; a YAML without ``nominal``.
         RobotError: the URDF cannot be loaded or lacks the sidecar's tip.
     """
     urdf = Path(urdf)
+    if is_yaml(urdf) and nominal is None:
+        raise DataError(
+            f"{urdf} is a UR kinematics YAML: give the UR robot it applies to (the URDF it was calibrated on)"
+        )
     path = Path(sidecar) if sidecar is not None else sidecar_path(urdf)
     try:
         side = json.loads(path.read_text(encoding="utf-8"))
@@ -84,7 +100,11 @@ def load_calibration(urdf: str | Path, sidecar: str | Path | None = None) -> Cal
     if not isinstance(side, dict):
         raise DataError(f"{path} is not a pincal calibration sidecar: not a JSON object")
     try:
-        robot = load_robot(urdf, tip=side["tip"], joints=side.get("joints"))
+        chain = {"tip": side["tip"], "joints": side.get("joints")}
+        if is_yaml(urdf):
+            robot = load_robot(nominal or "", **chain, **{**robot_options, "kinematics": urdf})
+        else:
+            robot = load_robot(urdf, **chain)
         reg, spec = side.get("instrument_T_base"), side.get("extension")
         ext, effect = None, np.zeros(0)
         if spec is not None:

@@ -204,6 +204,11 @@ def calibrated_ur_kinematics(cal: Calibration, calibration_hash: str | None = No
     return URKinematics(tuple(origins[chain.prefix + j] for j in JOINTS), calibration_hash)
 
 
+def is_yaml(path: str | Path | None) -> bool:
+    """True when ``path`` names a UR kinematics YAML (``.yaml`` or ``.yml``)."""
+    return path is not None and Path(path).suffix.lower() in (".yaml", ".yml")
+
+
 def write_ur_kinematics(
     cal: Calibration, path: str | Path, calibration_hash: str | None = None
 ) -> tuple[Path, Path]:

@@ -36,19 +36,21 @@ def urdf_path(robot: str | None) -> Path | None:
 
 def ur_yaml_output(args: argparse.Namespace) -> bool:
     """True when ``-o`` names a UR kinematics YAML (``.yaml`` or ``.yml``)."""
-    output = getattr(args, "output", None)
-    return output is not None and Path(output).suffix.lower() in (".yaml", ".yml")
+    from ..ur_yaml import is_yaml
+
+    return is_yaml(getattr(args, "output", None))
 
 
 def robot_options(args: argparse.Namespace) -> dict[str, Any]:
     """Keyword arguments of :func:`pincal.load_robot` from ``--xacro-arg``, ``--package-path``,
-    ``--kinematics`` (for a bundled UR written as a UR YAML: ``ur_description``'s default) and
-    ``--inertias``."""
+    ``--kinematics`` (for a bundled UR written as, or compensated with, a UR YAML:
+    ``ur_description``'s default) and ``--inertias``."""
     from ..descriptions import parse_package_paths, parse_xacro_args
-    from ..ur_yaml import DEFAULT_DH, default_ur_kinematics
+    from ..ur_yaml import DEFAULT_DH, default_ur_kinematics, is_yaml
 
     kinematics = getattr(args, "kinematics", None)
-    if kinematics is None and ur_yaml_output(args) and args.robot in DEFAULT_DH:
+    ur_frames = ur_yaml_output(args) or is_yaml(getattr(args, "calibration", None))
+    if kinematics is None and ur_frames and args.robot in DEFAULT_DH:
         kinematics = default_ur_kinematics(args.robot)
     return {
         "xacro_args": parse_xacro_args(getattr(args, "xacro_arg", None)),

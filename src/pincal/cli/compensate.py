@@ -22,8 +22,10 @@ def run(args: argparse.Namespace) -> int:
         "calibration sidecar": sidecar_path(args.calibration),
     }
     check_outputs(args, [args.output], {**inputs, "input URDF": urdf_path(args.robot)})
-    cal = load_calibration(args.calibration)
-    nominal = load_robot(args.robot, tip=cal.robot.tip, joints=cal.robot.joint_names, **robot_options(args))
+    options = robot_options(args)
+    description = {k: v for k, v in options.items() if k != "kinematics"}  # a YAML's base robot
+    cal = load_calibration(args.calibration, nominal=args.robot, **description)
+    nominal = load_robot(args.robot, tip=cal.robot.tip, joints=cal.robot.joint_names, **options)
     program = read_program(args.program, nominal, args.degrees, args.units)
     header = csv_columns(args.program)
     targets = [c for c in ("x", "y", "z", "qw", "qx", "qy", "qz") if c in header]

@@ -143,7 +143,10 @@ def _add_compensate(sub: Any) -> None:
     comp.add_argument("robot", help="the nominal robot the program was written for (URDF or bundled name)")
     _add_robot_options(comp)
     comp.add_argument(
-        "calibration", type=Path, help="the corrected URDF 'calibrate -o' wrote (sidecar beside)"
+        "calibration",
+        type=Path,
+        help="the corrected URDF or UR kinematics YAML 'calibrate -o' wrote (sidecar beside); a YAML "
+        "applies to ROBOT (with --kinematics: the controller's calibration the program was written for)",
     )
     comp.add_argument(
         "program", type=Path, help="CSV: a column per chain joint, or tool targets x,y,z[,qw,qx,qy,qz]"
