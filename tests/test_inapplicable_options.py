@@ -84,13 +84,22 @@ def test_options_that_apply_are_not_said(capsys: pytest.CaptureFixture[str], pos
     assert code == 0 and "ignored" not in err, err
 
 
-@pytest.mark.parametrize("name", ["a.csv", "a.JSON", "a.txt"])
+@pytest.mark.parametrize("name", ["a.csv", "a.JSON", "a.txt", "robot_calibrated", "a.urdf.xacro", "a.xml"])
 def test_the_corrected_robot_is_not_written_as_data(
     capsys: pytest.CaptureFixture[str], positions: Path, tmp_path: Path, name: str
 ) -> None:
     line = one_error_line(capsys, "calibrate", "ur5", positions, *FAST, "-o", tmp_path / name)
     assert ".urdf" in line and name in line, line
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("name", ["a.urdf", "a.URDF"])
+def test_the_corrected_robot_is_written_as_urdf(
+    capsys: pytest.CaptureFixture[str], positions: Path, tmp_path: Path, name: str
+) -> None:
+    code, _, err = run(capsys, "calibrate", "ur5", positions, *FAST, "-o", tmp_path / name)
+    assert code == 0, err
+    assert len(pincal.load_robot(tmp_path / name, tip="tool0").joint_names) == 6
 
 
 def test_compensate_says_it_reads_the_joints_not_the_targets(

@@ -27,8 +27,8 @@ from .common import (
 
 #: ``--nested`` -> the ``nested`` argument of :func:`pincal.calibrate`.
 NESTED = {"auto": None, "yes": True, "no": False}
-#: ``-o`` suffixes of files that are not a robot description (a mistyped ``--report`` or data file).
-NOT_A_ROBOT = (".csv", ".json", ".txt", ".png", ".pdf", ".svg")
+#: ``-o`` suffixes of what the corrected robot is written as: a URDF, or a UR kinematics YAML.
+ROBOT_SUFFIXES = (".urdf", ".yaml", ".yml")
 
 
 def _check_arguments(args: argparse.Namespace) -> None:
@@ -42,10 +42,11 @@ def _check_arguments(args: argparse.Namespace) -> None:
         raise DataError("DATA and --test are both '-': standard input holds one file, give the other by name")
     if args.output is not None and (args.output.is_dir() or not args.output.name):
         raise DataError(f"-o {args.output} is a folder: give a file name such as robot_calibrated.urdf")
-    if args.output is not None and args.output.suffix.lower() in NOT_A_ROBOT:
+    if args.output is not None and args.output.suffix.lower() not in ROBOT_SUFFIXES:
+        kind = f"not a {args.output.suffix} file" if args.output.suffix else "and the name has no suffix"
         raise DataError(
-            f"-o {args.output}: the corrected robot is a URDF or a UR kinematics YAML, not a "
-            f"{args.output.suffix} file: name it .urdf or .yaml (--report FILE.json for the report)"
+            f"-o {args.output}: the corrected robot is a URDF or a UR kinematics YAML, {kind}: name it "
+            ".urdf or .yaml (--report FILE.json for the report)"
         )
     side = None if args.output is None else sidecar_path(args.output)
     check_outputs(
