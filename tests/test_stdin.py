@@ -196,3 +196,29 @@ def test_a_device_that_never_ends_is_refused(
     code = main(["calibrate", "ur5", "/dev/zero"])
     assert code == 2
     _one_line(capfd.readouterr().err, "/dev/zero", "larger")
+
+
+def test_a_regular_file_is_read_whole_once(
+    monkeypatch: pytest.MonkeyPatch, csv_text: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`calibrate` reads a data file whole once: its header (asked for by the chain, the reader
+    and the past-tip check) is read only up to the header line, and gives the same columns."""
+    data = tmp_path / "data.csv"
+    data.write_text("# measured 2026-11-23\n\n" + csv_text, encoding="utf-8")
+    whole: list[str] = []
+    real = pincal.files.read_input_text
+
+    def counted(path: str | Path, what: str = "data file") -> str:
+        whole.append(str(path))
+        return real(path, what)
+
+    monkeypatch.setattr(pincal.files, "read_input_text", counted)
+    monkeypatch.setattr(pincal.data, "read_input_text", counted)
+    assert main(["calibrate", "ur5", str(data), *FIT]) == 0, capsys.readouterr().err
+    assert whole.count(str(data)) == 1
+    assert pincal.data.csv_columns(data) == csv_text.splitlines()[0].split(",")
+    assert whole.count(str(data)) == 1
+    for text in ("", "# only a comment\n\n"):  # no header line: the empty file's one message
+        data.write_text(text, encoding="utf-8")
+        with pytest.raises(pincal.DataError, match="is empty"):
+            pincal.data.csv_columns(data)

@@ -23,7 +23,7 @@ import numpy as np
 import pinocchio as pin
 
 from .errors import DataError
-from .files import STDIN, atomic_write, read_input_text
+from .files import STDIN, atomic_write, first_line, read_input_text
 from .options import UNITS
 from .robots import Robot
 
@@ -63,8 +63,7 @@ class Dataset:
         return self.rows if self.rows is not None else np.arange(1, len(self.q) + 1)
 
     def row_name(self, row: int) -> str:
-        """Where the pose of row number ``row`` is: ``row 7``, or for a folder of socket files
-        ``front/hole_1.csv row 7``."""
+        """Where row number ``row`` is: ``row 7``, in socket files ``left/hole_1.csv row 7``."""
         if self.point_rows is None or row < self.point_rows[0]:
             return f"row {row}"
         k = int(np.searchsorted(self.point_rows, row, side="right")) - 1
@@ -137,9 +136,10 @@ def _read_lines(path: Path) -> list[str]:
 
 
 def csv_columns(path: str | Path) -> list[str]:
-    """The column names of a measurement CSV (its first non-comment line)."""
+    """The column names of a measurement CSV (its first non-comment line, read up to it)."""
+    header = first_line(path) or _read_lines(Path(path))[0]  # None: the empty file's message
     try:
-        return [h.strip() for h in next(csv.reader(_read_lines(Path(path))[:1]))]
+        return [h.strip() for h in next(csv.reader([header]))]
     except csv.Error as exc:
         raise DataError(f"{path}: malformed header line ({exc})") from None
 

@@ -77,6 +77,37 @@ def read_input_text(path: str | Path, what: str = "data file") -> str:
     return text
 
 
+#: Longest line :func:`first_line` reads from a regular file before reading the file whole [chars].
+MAX_HEADER_CHARS = 1_000_000
+
+
+def first_line(path: str | Path, what: str = "data file") -> str | None:
+    """The first line that is neither blank nor a ``#`` comment, or None when there is none.
+
+    A regular file is read only up to that line (a header is read before the table, and a
+    100 MB CSV is not read whole for it); standard input, a pipe, or a file that is not UTF-8
+    text or has a very long line is read whole by :func:`read_input_text` (kept for the next
+    read, and refused with its message).
+    """
+    name = str(path)
+    regular = name != STDIN and name not in _read_once and os.path.isfile(name)
+    if regular and stat.S_ISREG(os.stat(name).st_mode):
+        try:
+            with open(name, encoding="utf-8-sig") as fh:
+                while line := fh.readline(MAX_HEADER_CHARS):
+                    if len(line) >= MAX_HEADER_CHARS:
+                        break
+                    for part in line.splitlines():  # the separators str.splitlines knows
+                        if part.strip() and not part.lstrip().startswith("#"):
+                            return part
+                else:
+                    return None
+        except (OSError, UnicodeDecodeError):
+            pass  # read whole below, for the one message of every input
+    lines = (ln for ln in read_input_text(path, what).splitlines())
+    return next((ln for ln in lines if ln.strip() and not ln.lstrip().startswith("#")), None)
+
+
 def _read_stdin(what: str) -> bytes:
     stream = sys.stdin
     if stream is None:
