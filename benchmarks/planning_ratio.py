@@ -20,6 +20,7 @@ calibration wins. ``--timing``: seconds to plan 20 of 2000 candidates, one BLAS 
 Usage::
 
     python benchmarks/planning_ratio.py [--seeds 10] [--sizes 15,20,30,40] [--task] [--draws 30] [--timing]
+        [--robot panda]
 """
 
 from __future__ import annotations
@@ -86,7 +87,7 @@ def compare(ours: np.ndarray, theirs: np.ndarray) -> tuple[float, float]:
 def workspace(robot: pincal.Robot, sizes: list[int], seeds: range, draws: int = 1) -> None:
     """The table; with ``draws`` > 1, over that many noise draws per design, and the chance of
     winning at least 9 of 10 seeds with one calibration each."""
-    print(f"ur5, placements, position; reflector and tracker unknown; {len(seeds)} seeds")
+    print(f"{robot.name}, placements, position; reflector and tracker unknown; {len(seeds)} seeds")
     for n in sizes:
         ratios: dict[str, list[float]] = {"i": [], "d": []}
         wins: dict[str, list[float]] = {"i": [], "d": []}
@@ -167,8 +168,9 @@ def main() -> None:
         "--draws", type=int, default=1, help="noise draws per design (expected ratios, chance of a win)"
     )
     parser.add_argument("--timing", action="store_true", help="only the planning time")
+    parser.add_argument("--robot", default="ur5", help="a bundled robot (the issue's simulation is ur5's)")
     args = parser.parse_args()
-    robot = pincal.load_robot("ur5")
+    robot = pincal.load_robot(args.robot)
     if args.timing:
         timing(robot)
     elif args.task:

@@ -89,6 +89,31 @@ def test_folder_of_placements_reads_every_row_at_its_own_point(tmp_path: Path) -
         np.testing.assert_allclose(read.q[read.labels == k], expected, rtol=1e-15, atol=1e-15)
 
 
+
+def test_mukca_tip_pose_files_are_not_read_as_sockets(tmp_path: Path) -> None:
+    """MUKCa's recordings keep the robot's own tip poses beside the joints (``hole_0_pose.csv``:
+    x,y,z and a quaternion, 7 numbers a row, as many as a Panda's joints): they are skipped, in
+    one placement and in a folder of them, and a folder of nothing else is refused."""
+    _, data = _experiment()
+    robot = pincal.load_robot("ur5")
+    folder = _write_folder(tmp_path / "plain", data)
+    expected = read_socket_folder(folder, robot.joint_names)
+    rng = np.random.default_rng(0)
+    for place in PLACES:
+        for socket in ("0", "1"):  # as many columns as joints: readable as joint values
+            poses = rng.uniform(-0.5, 0.5, (N_ROWS // 2, robot.n_joints))
+            np.savetxt(folder / place / f"hole_{socket}_pose.csv", poses, delimiter=",")
+    read = read_socket_folder(folder, robot.joint_names)
+    assert read.point_names == expected.point_names
+    np.testing.assert_array_equal(read.q, expected.q)
+    one = read_socket_folder(folder / "front", robot.joint_names)
+    assert one.point_names == ("0", "1") and len(one) == N_ROWS
+    only_poses = tmp_path / "poses"
+    only_poses.mkdir()
+    np.savetxt(only_poses / "hole_0_pose.csv", np.zeros((3, robot.n_joints)), delimiter=",")
+    with pytest.raises(pincal.DataError, match="no hole_<name>.csv"):
+        read_socket_folder(only_poses, robot.joint_names)
+
 def test_two_placements_calibrate_to_the_noise_floor_of_a_third(tmp_path: Path) -> None:
     """Fitted on ``front`` and ``left`` together (a distance in each), judged on ``low``: within
     1.3x of the true robot's own score there, the distance error at the means' noise."""

@@ -92,8 +92,8 @@ def check_distances(points: tuple[str, ...], distances: tuple[PointDistance, ...
         for name in (a, b):
             if name not in points:
                 raise DataError(
-                    f"--point-distance names point {name!r}, but the data's point column has only "
-                    f"{', '.join(points)}"
+                    f"--point-distance names point {name!r}, but the data's points are only "
+                    f"{', '.join(points)} (a point column's names, or the hole_<name>.csv files)"
                 )
 
 

@@ -47,13 +47,20 @@ def read_points_csv(
     return Dataset(tuple(joint_names), q, np.zeros((len(q), 3)), labels=labels, point_names=tuple(names))
 
 
+def socket_files(folder: Path) -> list[Path]:
+    """The ``hole_<name>.csv`` files of a folder, sorted; ``hole_<name>_pose.csv`` (MUKCa's
+    recordings of the robot's own tip poses, x,y,z and a quaternion) are not joint values."""
+    return sorted(p for p in folder.glob("hole_*.csv") if not p.stem.endswith("_pose"))
+
+
 def read_socket_folder(
     folder: str | Path, joint_names: Sequence[str], prismatic: Sequence[bool] | None = None
 ) -> Dataset:
     """Fixed-point data in MUKCa's layout: a folder of ``hole_<name>.csv`` files without a
     header, one row per configuration, one column per chain joint in chain order [rad, m]; the
-    point of a row is its file's ``<name>``. A folder of such folders (placements of the fixture,
-    as MUKCa's ``data/<robot>/``) reads as one data set whose points are ``<placement>/<name>``:
+    point of a row is its file's ``<name>`` (``hole_<name>_pose.csv`` files are skipped). A
+    folder of such folders (placements of the fixture, as MUKCa's ``data/<robot>/``) reads as one
+    data set whose points are ``<placement>/<name>``:
     every placement's sockets are unknowns of their own, the robot is shared, and a known
     distance ``0,1=D`` holds in each placement (:func:`pincal.fixed_points.placed_distances`).
 
@@ -61,9 +68,9 @@ def read_socket_folder(
         DataError: no such files, a row with the wrong number of values, a value not finite.
     """
     folder = Path(folder)
-    files = sorted(folder.glob("hole_*.csv"))
+    files = socket_files(folder)
     if not files:
-        places = sorted(p for p in folder.iterdir() if p.is_dir() and any(p.glob("hole_*.csv")))
+        places = sorted(p for p in folder.iterdir() if p.is_dir() and socket_files(p))
         if places:
             return _placements(folder, places, joint_names, prismatic)
         raise DataError(
