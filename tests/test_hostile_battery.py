@@ -239,3 +239,32 @@ def test_tcp_refuses_flange_positions_no_instrument_measures(
         line = one_error_line(capsys, "tcp", data, "--units", "mm")
     assert "flange positions x,y,z" in line
     assert not [w for w in caught if issubclass(w.category, RuntimeWarning)], caught
+
+
+def test_huge_quaternion_entries_are_scaled_not_overflowed(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """A quaternion with an entry of 1e308 (a fuzzed cell, found with x = 1e308 by tcp's fuzz
+    test) is the rotation of its direction: scaled first, its norm no longer overflows to a
+    RuntimeWarning; with x = 1e308 too, tcp's one error line is the positions'."""
+    import warnings
+
+    from pincal.data import unit_quaternions
+
+    big = np.array([[1e308, 1e308, 0.0, 0.0], [1e308, 0.0, 0.0, 0.0], [0.5, 0.5, 0.5, 0.5]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        unit = unit_quaternions("q.csv", big)
+    expected = [[2**-0.5, 2**-0.5, 0, 0], [1, 0, 0, 0], [0.5, 0.5, 0.5, 0.5]]
+    np.testing.assert_allclose(unit, expected, atol=1e-15)
+    with pytest.raises(pincal.DataError, match="data row 2: the quaternion"):
+        unit_quaternions("q.csv", np.array([[1.0, 0, 0, 0], [0.0, 0, 0, 1e-12]]))
+    rows = ["x,y,z,qw,qx,qy,qz", "1e308,171.2,166.6,1e308,0.17,0.02,-0.29"]
+    rows += [f"{800 + 10 * k},{40 + 20 * k},{160 + 5 * k},0.9,{-0.2 + 0.1 * k},0.1,0.05" for k in range(5)]
+    data = tmp_path / "flange.csv"
+    data.write_text("\n".join(rows) + "\n")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        line = one_error_line(capsys, "tcp", data)
+    assert "flange positions x,y,z" in line
+    assert not [w for w in caught if issubclass(w.category, RuntimeWarning)], caught

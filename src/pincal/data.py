@@ -251,9 +251,7 @@ def read_csv(
     n = len(joint_names)
     q = joint_values(values[:, :n], degrees, units, prismatic)
     points = values[:, n : n + 3] * UNITS[units]
-    quats = values[:, n + 3 : n + 7] if quat_order else None
-    if quats is not None:
-        check_quaternions(path, quats)
+    quats = unit_quaternions(path, values[:, n + 3 : n + 7]) if quat_order else None
     check_locked(path, still, values[:, n + 3 + len(quat_order) :], degrees)
     return Dataset(tuple(joint_names), q, points, quats)
 
@@ -270,11 +268,13 @@ def joint_values(
     return q
 
 
-def check_quaternions(path: str | Path, quats: np.ndarray) -> None:
-    """Refuse quaternions (N, 4) of zero length, naming the first such data row."""
-    zero = np.flatnonzero(np.linalg.norm(quats, axis=1) < 1e-9)
+def unit_quaternions(path: str | Path, quats: np.ndarray) -> np.ndarray:
+    """Quaternions (N, 4) scaled to unit length; one of zero length is refused, naming its data row."""
+    size = np.abs(quats).max(axis=1, keepdims=True)  # first: a norm overflows on entries of 1e308
+    zero = np.flatnonzero(size[:, 0] < 1e-9)
     if zero.size:
         raise DataError(f"{path}: data row {zero[0] + 1}: the quaternion qw,qx,qy,qz is zero, not a rotation")
+    return (quats / size) / np.linalg.norm(quats / size, axis=1, keepdims=True)
 
 
 def write_csv(path: str | Path, data: Dataset, units: str = "m") -> None:
@@ -344,7 +344,6 @@ def read_program(
 
     quat = quaternion_columns(path, sorted(header))  # all four or none
     values = read_table(path, ["x", "y", "z", *quat], "x,y,z (and optionally qw,qx,qy,qz)")
-    if quat:
-        check_quaternions(path, values[:, 3:])
-    rot = np.array([pin.Quaternion(*v[3:]).normalized().matrix() for v in values]) if quat else None
+    quats = unit_quaternions(path, values[:, 3:]) if quat else None
+    rot = None if quats is None else np.array([pin.Quaternion(*v).matrix() for v in quats])
     return Targets(values[:, :3] * UNITS[units], rot)

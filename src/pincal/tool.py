@@ -21,7 +21,7 @@ import numpy as np
 import pinocchio as pin
 
 from .checks import bounded_spread
-from .data import UNITS, check_quaternions, csv_columns, read_table
+from .data import UNITS, csv_columns, read_table, unit_quaternions
 from .errors import DataError
 from .options import ORIENTATIONS
 from .robots import Robot
@@ -321,8 +321,7 @@ def read_flange_poses(
             ordered = [mine[c] for c in columns if c in mine]
             quat = [ordered[3], *ordered[:3]]
         values = read_table(path, ["x", "y", "z", *quat], "x,y,z,qw,qx,qy,qz", rename)
-        check_quaternions(path, values[:, 3:])
-        quats = values[:, 3:] / np.linalg.norm(values[:, 3:], axis=1, keepdims=True)
+        quats = unit_quaternions(path, values[:, 3:])
         rotations = np.array([pin.Quaternion(*qt).toRotationMatrix() for qt in quats])
         bounded_spread(values[:, :3] * UNITS[units], "flange positions x,y,z")
         return rotations, values[:, :3]
