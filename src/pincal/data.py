@@ -23,7 +23,7 @@ import numpy as np
 import pinocchio as pin
 
 from .errors import DataError
-from .files import STDIN, atomic_write, first_line, read_input_text
+from .files import STDIN, atomic_write, first_line, is_content, read_input_text
 from .options import UNITS
 from .robots import Robot
 
@@ -128,7 +128,7 @@ class Dataset:
 
 def _read_lines(path: Path) -> list[str]:
     text = read_input_text(path)  # once: standard input and pipes cannot be read twice
-    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
+    lines = list(filter(is_content, text.splitlines()))
     if not lines:
         name = "standard input" if str(path) == STDIN else path
         raise DataError(f"{name} is empty: it needs a header line and one row per pose")
@@ -274,7 +274,8 @@ def unit_quaternions(path: str | Path, quats: np.ndarray) -> np.ndarray:
     zero = np.flatnonzero(size[:, 0] < 1e-9)
     if zero.size:
         raise DataError(f"{path}: data row {zero[0] + 1}: the quaternion qw,qx,qy,qz is zero, not a rotation")
-    return (quats / size) / np.linalg.norm(quats / size, axis=1, keepdims=True)
+    scaled = quats / size
+    return scaled / np.linalg.norm(scaled, axis=1, keepdims=True)
 
 
 def write_csv(path: str | Path, data: Dataset, units: str = "m") -> None:

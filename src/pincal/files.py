@@ -81,6 +81,11 @@ def read_input_text(path: str | Path, what: str = "data file") -> str:
 MAX_HEADER_CHARS = 1_000_000
 
 
+def is_content(line: str) -> bool:
+    """True for a line of a data file that is neither blank nor a ``#`` comment."""
+    return bool(line.strip()) and not line.lstrip().startswith("#")
+
+
 def first_line(path: str | Path, what: str = "data file") -> str | None:
     """The first line that is neither blank nor a ``#`` comment, or None when there is none.
 
@@ -98,14 +103,13 @@ def first_line(path: str | Path, what: str = "data file") -> str | None:
                     if len(line) >= MAX_HEADER_CHARS:
                         break
                     for part in line.splitlines():  # the separators str.splitlines knows
-                        if part.strip() and not part.lstrip().startswith("#"):
+                        if is_content(part):
                             return part
                 else:
                     return None
         except (OSError, UnicodeDecodeError):
             pass  # read whole below, for the one message of every input
-    lines = (ln for ln in read_input_text(path, what).splitlines())
-    return next((ln for ln in lines if ln.strip() and not ln.lstrip().startswith("#")), None)
+    return next(filter(is_content, read_input_text(path, what).splitlines()), None)
 
 
 def _read_stdin(what: str) -> bytes:
