@@ -21,6 +21,7 @@ import pincal
 from pincal.cli import main
 from pincal.fixed_points import placed_distances, point_errors
 from pincal.point_files import read_socket_folder
+from pincal.report import placements, report_json, warnings
 from pincal.simulation import TrueRobot, ball_positions, points_truth, simulate_points
 
 NOISE = 5e-5  # 1σ per coordinate of where the hand holds the ball [m]
@@ -205,3 +206,44 @@ def test_a_slipped_ball_is_named_by_its_file_and_row(
     assert code == 0, err
     left_out = [line for line in out.splitlines() if line.startswith("outliers left out")]
     assert len(left_out) == 1 and "left/hole_1.csv row 4 (" in left_out[0], out
+
+
+def test_a_placement_whose_rows_scatter_is_named(tmp_path: Path) -> None:
+    """Three placements, one recorded with the ball five times looser in its sockets (a fixture
+    that moved): the report names that one, and only that one, with a warning; with every
+    placement alike none is named. Each placement's distance error is its own pair's."""
+    truth, data = _experiment()
+    robot = pincal.load_robot("ur5")
+    low = simulate_points(truth, _sockets("low"), N_ROWS, 5 * NOISE, np.random.default_rng(9))
+    loose = dict(data, low=low)
+    distances = (("0", "1", DISTANCE),)
+    for rows, suspect in ((data, set()), (loose, {"low"})):
+        fitted = read_socket_folder(_write_folder(tmp_path / str(len(suspect)), rows), robot.joint_names)
+        cal = pincal.calibrate(
+            robot, fitted, "placements", params="auto", outliers=6.0, point_distances=distances
+        )
+        each = placements(cal, fitted)
+        assert [p.name for p in each] == sorted(PLACES)
+        assert {p.name for p in each if p.suspect} == suspect
+        for p in each:
+            assert p.after.point_distance_error_mm is not None
+            assert p.after.point_distance_error_mm < 10 * NOISE * 1e3  # its own pair, not another's
+        warned = [w for w in warnings(cal, fitted) if w.startswith("placement")]
+        assert len(warned) == len(suspect)
+        written = json.loads(report_json(cal, fitted))
+        assert [p["suspect"] for p in written["placements"]] == [p.suspect for p in each]
+
+
+def test_errors_of_a_subset_holding_one_point_have_no_distance(tmp_path: Path) -> None:
+    """A subset with the rows of one socket only: no distance error (there is no pair), the
+    rows' errors those of the whole data's rows of that socket."""
+    truth, data = _experiment()
+    held = data["front"]
+    assert held.labels is not None
+    tips = ball_positions(truth, held.q)[0]
+    rows, off = point_errors(tips, held, (("0", "1", DISTANCE),))
+    assert len(off) == 1
+    first = np.flatnonzero(held.labels == 0)
+    part_rows, part_off = point_errors(tips[first], held.subset(first), (("0", "1", DISTANCE),))
+    assert len(part_off) == 0
+    np.testing.assert_allclose(part_rows, rows[first], rtol=1e-12)

@@ -116,3 +116,87 @@ def evaluate(
         tips = Problem(model, measurement, data, extension).target_frames(theta)[2]
         return ErrorStats.of_points(*point_errors(tips, data, measurement.point_distances))
     return ErrorStats.of(*pose_errors(model, measurement, theta, data, extension))
+
+
+#: A placement is named in the summary when its rows scatter this many times the other
+#: placements' median after calibration...
+SCATTER_RATIO = 2.0
+#: ... or when this share of its rows were left out as outliers (0-2 % on MUKCa's other placements).
+LEFT_OUT_SHARE = 0.1
+
+
+@dataclass(frozen=True)
+class PlacementErrors:
+    """One placement of a fixture in fixed-point data of several (points ``<placement>/<name>``).
+
+    Attributes:
+        name: the placement (its folder).
+        rows: its rows; left_out: how many of them the outlier screen left out of the fit.
+        after: errors of the calibrated model on its fitted rows [mm].
+        others_mae_mm: median of the other placements' ``after.point_mae_mm`` [mm].
+    """
+
+    name: str
+    rows: int
+    left_out: int
+    after: ErrorStats
+    others_mae_mm: float
+
+    @property
+    def suspect(self) -> bool:
+        """Its rows scatter far more than the other placements', or many were outliers: the
+        fixture may have moved, or the ball slipped, while it was recorded."""
+        mae = float(self.after.point_mae_mm or 0.0)
+        return mae >= SCATTER_RATIO * self.others_mae_mm or self.left_out >= LEFT_OUT_SHARE * self.rows
+
+    def to_dict(self) -> dict[str, object]:
+        """JSON-ready description."""
+        return {
+            "name": self.name,
+            "rows": self.rows,
+            "left_out": self.left_out,
+            "point_mae_mm": self.after.point_mae_mm,
+            "point_distance_error_mm": self.after.point_distance_error_mm,
+            "suspect": self.suspect,
+        }
+
+
+def placement_errors(
+    model: Model,
+    measurement: Measurement,
+    theta: np.ndarray,
+    data: Dataset,
+    extension: Extension | None = None,
+    left_out: tuple[int, ...] = (),
+) -> list[PlacementErrors]:
+    """Each placement's errors on its fitted rows, for fixed-point data of several placements
+    (points named ``<placement>/<name>``, as a folder of placement folders reads) in the order
+    the data has them; an empty list for one placement or other data.
+
+    Args:
+        model, measurement, theta, extension: the calibrated model.
+        data: the fitted data, outliers included.
+        left_out: row numbers the outlier screen left out of the fit.
+    """
+    if measurement.kind != "points" or data.labels is None:
+        return []
+    place = np.array([name.rpartition("/")[0] for name in data.point_names])[data.labels]
+    out = np.isin(data.row_numbers, left_out)
+    places = [p for p in dict.fromkeys(place.tolist()) if ((place == p) & ~out).any()]
+    if len(places) < 2:
+        return []
+    stats = [
+        evaluate(model, measurement, theta, data.subset(np.flatnonzero((place == p) & ~out)), extension)
+        for p in places
+    ]
+    maes = np.array([float(s.point_mae_mm or 0.0) for s in stats])
+    return [
+        PlacementErrors(
+            p,
+            int((place == p).sum()),
+            int(((place == p) & out).sum()),
+            s,
+            float(np.median(np.delete(maes, k))),
+        )
+        for k, (p, s) in enumerate(zip(places, stats))
+    ]

@@ -141,7 +141,8 @@ def point_errors(
     means = point_means(tips, data.labels, len(data.point_names))
     where = {name: k for k, name in enumerate(data.point_names)}
     placed = placed_distances(data.point_names, distances)
-    known = [(where[a], where[b], d) for a, b, d in placed if a in where and b in where]
+    present = set(np.unique(data.labels).tolist())  # a subset may hold some points only
+    known = [(where[a], where[b], d) for a, b, d in placed if {where.get(a), where.get(b)} <= present]
     off = [abs(float(np.linalg.norm(means[a] - means[b])) - d) for a, b, d in known]
     return np.linalg.norm(tips - means[data.labels], axis=1), np.array(off)
 

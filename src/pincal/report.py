@@ -16,7 +16,7 @@ import pinocchio as pin
 from .calibration import Calibration
 from .data import Dataset
 from .effects import compliance_stiffness
-from .evaluation import ErrorStats
+from .evaluation import ErrorStats, PlacementErrors, placement_errors
 from .models import PoeModel
 
 _TO_DISPLAY = {"m": (1e3, "mm"), "rad": (1e3, "mrad")}
@@ -115,6 +115,8 @@ def report_dict(cal: Calibration, data: Dataset | None = None) -> dict[str, Any]
         "solver": {"jacobian_evaluations": cal.n_evaluations, "message": cal.message},
         "excluded_poses": [{"row": row, "residual_mm": size} for row, size in cal.excluded],
         "parameters": parameter_rows(cal),
+        "placements": [p.to_dict() for p in placements(cal, data)],
+        "warnings": warnings(cal, data),
         "choice": None if cal.choice is None else cal.choice.to_dict(),
         "extension": extension_dict(cal, data),
         **extra,
@@ -134,6 +136,45 @@ def report_json(cal: Calibration, data: Dataset | None = None, **extra: Any) -> 
         return obj
 
     return json.dumps(clean({**report_dict(cal, data), **extra}), indent=2) + "\n"
+
+
+def placements(cal: Calibration, data: Dataset | None) -> list[PlacementErrors]:
+    """Each placement's errors after calibration, for fixed-point data of several placements
+    (``data``: the fitted data); else an empty list."""
+    if data is None:
+        return []
+    left_out = tuple(row for row, _ in cal.excluded)
+    return placement_errors(cal.model, cal.measurement, cal.theta, data, cal.extension, left_out)
+
+
+def _headline(stats: ErrorStats) -> float:
+    """The figure a report leads with [mm]: MUKCa's mean error for fixed points, else the RMS."""
+    return stats.point_mae_mm if stats.point_mae_mm is not None else stats.rms_mm
+
+
+def warnings(cal: Calibration, data: Dataset | None = None) -> list[str]:
+    """What the user should know before trusting the result: held-out poses predicted worse
+    than by the nominal kinematics, placements whose rows disagree with themselves."""
+    out = []
+    if cal.test_after is not None and cal.test_before is not None:
+        after, before = _headline(cal.test_after), _headline(cal.test_before)
+        if after > before:
+            out.append(
+                f"the calibrated model predicts the held-out poses worse than the nominal kinematics "
+                f"({after:.3f} against {before:.3f} mm): what the fitted poses determine does not carry "
+                "over to them; fit poses that cover where the robot works (sockets: several placements "
+                "at once), or keep the URDF"
+            )
+    for p in placements(cal, data):
+        if p.suspect:
+            mae = float(p.after.point_mae_mm or 0.0)
+            out.append(
+                f"placement {p.name}: its rows scatter {mae:.3f} mm from their points after calibration "
+                f"(the other placements' median {p.others_mae_mm:.3f} mm) and {p.left_out} of {p.rows} were "
+                "left out as outliers: the fixture may have moved, or the ball slipped, while it was "
+                "recorded; record it again, or calibrate without its folder"
+            )
+    return out
 
 
 def _fmt(stats: ErrorStats | None) -> str:
@@ -241,4 +282,15 @@ def summary(cal: Calibration, data: Dataset | None = None) -> str:
         name = data.row_name if data is not None else (lambda row: f"row {row}")
         rows = ", ".join(f"{name(row)} ({size:.3f} mm)" for row, size in cal.excluded)
         lines.append(f"outliers left out of the fit (residual far outside the others'): {rows}")
-    return "\n".join(lines + choice_lines(cal, data))
+    each = placements(cal, data)
+    if each:
+        lines.append(f"per placement, after [mm], {stat}:")
+        width = max(len(p.name) for p in each)
+        lines += [
+            f"  {p.name:{width}s} {_fmt(p.after)}  {p.rows} rows"
+            + (f", {p.left_out} left out" if p.left_out else "")
+            + ("  <- suspect" if p.suspect else "")
+            for p in each
+        ]
+    lines += choice_lines(cal, data)
+    return "\n".join(lines + [f"warning: {w}" for w in warnings(cal, data)])
