@@ -42,6 +42,7 @@ import pincal  # noqa: E402
 from pincal.diagnose import diagnose  # noqa: E402
 from pincal.evaluation import ErrorStats, evaluate  # noqa: E402
 from pincal.point_files import read_socket_folder  # noqa: E402
+from pincal.report import placements  # noqa: E402
 
 URDFS = {"panda": "panda.urdf", "kuka": "iiwa14.urdf", "dinova": "gen3lite.urdf"}
 DISTANCE = (("0", "1", 0.05),)  # [m] between the sockets
@@ -82,13 +83,21 @@ def placements_folder(places: list[Path], folder: Path) -> Path:
     return folder
 
 
-def pooled(robot_dir: Path, urdf: Path, model: str, folder: Path) -> list[Pooled]:
+def pooled(robot_dir: Path, urdf: Path, model: str, folder: Path) -> tuple[list[Pooled], list[str]]:
     """Leave one placement out: calibrate on all the others at once (the robot's folder of
-    placements, as ``pincal calibrate URDF ROBOT_DIR`` reads it), judge on the one left out."""
+    placements, as ``pincal calibrate URDF ROBOT_DIR`` reads it), judge on the one left out; and
+    the placements the calibration on every placement names as suspect (its warnings)."""
     robot = pincal.load_robot(urdf, tip="ball_link")
     places = sorted(p for p in robot_dir.iterdir() if p.is_dir())
     options: dict[str, Any] = dict(params="auto", outliers=6.0, point_distances=DISTANCE)
-    every = pincal.calibrate(robot, read_socket_folder(robot_dir, robot.joint_names), model, **options)
+    all_rows = read_socket_folder(robot_dir, robot.joint_names)
+    every = pincal.calibrate(robot, all_rows, model, **options)
+    suspects = [
+        f"{robot_dir.name}/{p.name} ({p.after.point_mae_mm:.3f} mm, the others' median "
+        f"{p.others_mae_mm:.3f} mm; {p.left_out} of {p.rows} rows left out)"
+        for p in placements(every, all_rows)
+        if p.suspect
+    ]
     out = []
     for place in places:
         others = placements_folder([p for p in places if p != place], folder / robot_dir.name / place.name)
@@ -98,7 +107,7 @@ def pooled(robot_dir: Path, urdf: Path, model: str, folder: Path) -> list[Pooled
         held = read_socket_folder(place, robot.joint_names)
         held_err, floor = (evaluate(c.model, c.measurement, c.theta, held, c.extension) for c in (cal, every))
         out.append(Pooled(robot_dir.name, place.name, held_err, floor, seconds))
-    return out
+    return out, suspects
 
 
 def judge(
@@ -236,13 +245,18 @@ def main() -> None:
     rows: list[Judged] = []
     pools: list[Pooled] = []
     causes: dict[str, Counter[str]] = {}
+    suspects: list[str] = []
     with tempfile.TemporaryDirectory() as folder:
         for robot_dir in sorted((root / "data").iterdir()):
             urdf = root / "urdf" / URDFS[robot_dir.name.split("_")[0]]
             judged, causes[robot_dir.name] = judge(robot_dir, urdf, args.model, args.extend)
             rows += judged
-            pools += pooled(robot_dir, urdf, args.model, Path(folder))
+            pool, named = pooled(robot_dir, urdf, args.model, Path(folder))
+            pools += pool
+            suspects += named
     print(table(rows, causes, pools))
+    named = "; ".join(suspects) or "none"
+    print(f"\nplacements a robot's calibration on every placement names as suspect: {named}")
     plot(rows, args.plot)
     print(f"\nplot: {args.plot}; whole benchmark {time.perf_counter() - start:.0f} s")
     if args.json is not None:
