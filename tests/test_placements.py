@@ -21,7 +21,7 @@ import pincal
 from pincal.cli import main
 from pincal.fixed_points import placed_distances, point_errors
 from pincal.point_files import read_socket_folder
-from pincal.report import placements, report_json, warnings
+from pincal.report import placements, report_json, report_warnings
 from pincal.simulation import TrueRobot, ball_positions, points_truth, simulate_points
 
 NOISE = 5e-5  # 1σ per coordinate of where the hand holds the ball [m]
@@ -228,7 +228,7 @@ def test_a_placement_whose_rows_scatter_is_named(tmp_path: Path) -> None:
         for p in each:
             assert p.after.point_distance_error_mm is not None
             assert p.after.point_distance_error_mm < 10 * NOISE * 1e3  # its own pair, not another's
-        warned = [w for w in warnings(cal, fitted) if w.startswith("placement")]
+        warned = [w for w in report_warnings(cal, fitted) if w.startswith("placement")]
         assert len(warned) == len(suspect)
         written = json.loads(report_json(cal, fitted))
         assert [p["suspect"] for p in written["placements"]] == [p.suspect for p in each]

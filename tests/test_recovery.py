@@ -26,7 +26,7 @@ import numpy as np
 import pytest
 
 import pincal
-from pincal.report import warnings
+from pincal.report import report_warnings
 
 SEED = 0
 N_FIT = 60
@@ -194,7 +194,7 @@ def test_held_out_poses_predicted_worse_than_nominal_are_warned() -> None:
         cal = pincal.calibrate(robot, data, "placements", test=test)
         assert cal.test_after is not None and cal.test_before is not None
         assert (cal.test_after.rms_mm > cal.test_before.rms_mm) == worse
-        said = warnings(cal, data)
+        said = report_warnings(cal, data)
         assert len(said) == int(worse)
         assert all("worse than the nominal kinematics" in w for w in said)
         assert ("warning: " in pincal.summary(cal, data)) == worse

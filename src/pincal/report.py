@@ -116,7 +116,7 @@ def report_dict(cal: Calibration, data: Dataset | None = None) -> dict[str, Any]
         "excluded_poses": [{"row": row, "residual_mm": size} for row, size in cal.excluded],
         "parameters": parameter_rows(cal),
         "placements": [p.to_dict() for p in placements(cal, data)],
-        "warnings": warnings(cal, data),
+        "warnings": report_warnings(cal, data),
         "choice": None if cal.choice is None else cal.choice.to_dict(),
         "extension": extension_dict(cal, data),
         **extra,
@@ -152,7 +152,7 @@ def _headline(stats: ErrorStats) -> float:
     return stats.point_mae_mm if stats.point_mae_mm is not None else stats.rms_mm
 
 
-def warnings(cal: Calibration, data: Dataset | None = None) -> list[str]:
+def report_warnings(cal: Calibration, data: Dataset | None = None) -> list[str]:
     """What the user should know before trusting the result: held-out poses predicted worse
     than by the nominal kinematics, placements whose rows disagree with themselves."""
     out = []
@@ -293,4 +293,4 @@ def summary(cal: Calibration, data: Dataset | None = None) -> str:
             for p in each
         ]
     lines += choice_lines(cal, data)
-    return "\n".join(lines + [f"warning: {w}" for w in warnings(cal, data)])
+    return "\n".join(lines + [f"warning: {w}" for w in report_warnings(cal, data)])
