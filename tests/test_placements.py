@@ -11,6 +11,7 @@ command line.
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from functools import cache
 from pathlib import Path
 
@@ -19,6 +20,7 @@ import pytest
 
 import pincal
 from pincal.cli import main
+from pincal.evaluation import misplaced_rows
 from pincal.fixed_points import placed_distances, point_errors
 from pincal.point_files import read_socket_folder
 from pincal.report import placements, report_json, report_warnings
@@ -192,7 +194,8 @@ def test_a_slipped_ball_is_named_by_its_file_and_row(
     capsys: pytest.CaptureFixture[str], tmp_path: Path
 ) -> None:
     """A row of ``left/hole_1.csv`` recorded with the ball in the other socket (50 mm off): the
-    outlier screen leaves it out and the summary names ``left/hole_1.csv row 4``."""
+    outlier screen leaves it out, the summary names ``left/hole_1.csv row 4``, and a warning says
+    it sits at point ``left/0``; the placement is not called suspect for it."""
     _, data = _experiment()
     folder = _write_folder(tmp_path, {p: data[p] for p in ("front", "left")})
     path = folder / "left" / "hole_1.csv"
@@ -206,6 +209,37 @@ def test_a_slipped_ball_is_named_by_its_file_and_row(
     assert code == 0, err
     left_out = [line for line in out.splitlines() if line.startswith("outliers left out")]
     assert len(left_out) == 1 and "left/hole_1.csv row 4 (" in left_out[0], out
+    warned = [line for line in out.splitlines() if line.startswith("warning:")]
+    assert len(warned) == 1, out
+    assert "1 fitted rows filed under point left/1 sit at point left/0" in warned[0]
+    assert warned[0].endswith(": left/hole_1.csv row 4")
+    assert "1 left out (1 at another point)" in out and "suspect" not in out
+
+
+def test_held_out_rows_at_the_other_socket_are_named(tmp_path: Path) -> None:
+    """Three rows of the held-out placement's ``hole_0.csv`` recorded in socket 1: its errors
+    count them (MUKCa's figure is over every row), and one warning names them as held-out rows
+    at point 1, with their distances; the fitted data has none."""
+    truth, data = _experiment()
+    robot = pincal.load_robot("ur5")
+    held = data["low"]
+    assert held.labels is not None
+    moved = held.labels.copy()
+    moved[np.flatnonzero(held.labels == 1)[:3]] = 0
+    wrong = replace(held, labels=moved)
+    cal = pincal.calibrate(
+        robot, data["front"], "placements", params="auto", point_distances=(("0", "1", DISTANCE),), test=wrong
+    )
+    said = report_warnings(cal, data["front"], wrong)
+    assert len(said) == 1 and said[0].startswith("3 held-out rows filed under point 0 sit at point 1 ("), said
+    found = misplaced_rows(cal.model, cal.measurement, cal.theta, wrong, cal.extension)
+    assert sorted(m.row for m in found) == sorted(wrong.row_numbers[moved != held.labels].tolist())
+    for m in found:
+        assert (m.point, m.near) == ("0", "1") and m.at_mm < 10 * NOISE * 1e3
+        assert abs(m.off_mm - DISTANCE * 1e3) < 1.0
+    assert cal.test_after is not None and cal.test_after.point_mae_mm is not None
+    assert cal.test_after.point_mae_mm > 2.0  # three rows 50 mm off in 40
+    assert report_warnings(cal, data["front"], held) == []
 
 
 def test_a_placement_whose_rows_scatter_is_named(tmp_path: Path) -> None:

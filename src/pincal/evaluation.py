@@ -131,7 +131,8 @@ class PlacementErrors:
 
     Attributes:
         name: the placement (its folder).
-        rows: its rows; left_out: how many of them the outlier screen left out of the fit.
+        rows: its rows; left_out: how many of them the outlier screen left out of the fit;
+            misplaced: how many of those sit at another of its points (:func:`misplaced_rows`).
         after: errors of the calibrated model on its fitted rows [mm].
         others_mae_mm: median of the other placements' ``after.point_mae_mm`` [mm].
     """
@@ -139,15 +140,18 @@ class PlacementErrors:
     name: str
     rows: int
     left_out: int
+    misplaced: int
     after: ErrorStats
     others_mae_mm: float
 
     @property
     def suspect(self) -> bool:
-        """Its rows scatter far more than the other placements', or many were outliers: the
-        fixture may have moved, or the ball slipped, while it was recorded."""
+        """Its rows scatter far more than the other placements', or many were outliers that no
+        other point explains: the fixture may have moved, or the ball slipped, while it was
+        recorded."""
         mae = float(self.after.point_mae_mm or 0.0)
-        return mae >= SCATTER_RATIO * self.others_mae_mm or self.left_out >= LEFT_OUT_SHARE * self.rows
+        unexplained = self.left_out - self.misplaced
+        return mae >= SCATTER_RATIO * self.others_mae_mm or unexplained >= LEFT_OUT_SHARE * self.rows
 
     def to_dict(self) -> dict[str, object]:
         """JSON-ready description."""
@@ -155,6 +159,7 @@ class PlacementErrors:
             "name": self.name,
             "rows": self.rows,
             "left_out": self.left_out,
+            "misplaced": self.misplaced,
             "point_mae_mm": self.after.point_mae_mm,
             "point_distance_error_mm": self.after.point_distance_error_mm,
             "suspect": self.suspect,
@@ -168,6 +173,7 @@ def placement_errors(
     data: Dataset,
     extension: Extension | None = None,
     left_out: tuple[int, ...] = (),
+    misplaced: tuple[int, ...] = (),
 ) -> list[PlacementErrors]:
     """Each placement's errors on its fitted rows, for fixed-point data of several placements
     (points named ``<placement>/<name>``, as a folder of placement folders reads) in the order
@@ -177,6 +183,7 @@ def placement_errors(
         model, measurement, theta, extension: the calibrated model.
         data: the fitted data, outliers included.
         left_out: row numbers the outlier screen left out of the fit.
+        misplaced: row numbers at another point than their own (:func:`misplaced_rows`).
     """
     if measurement.kind != "points" or data.labels is None:
         return []
@@ -190,13 +197,71 @@ def placement_errors(
         for p in places
     ]
     maes = np.array([float(s.point_mae_mm or 0.0) for s in stats])
+    elsewhere = out & np.isin(data.row_numbers, misplaced)
     return [
         PlacementErrors(
             p,
             int((place == p).sum()),
             int(((place == p) & out).sum()),
+            int(((place == p) & elsewhere).sum()),
             s,
             float(np.median(np.delete(maes, k))),
         )
         for k, (p, s) in enumerate(zip(places, stats))
     ]
+
+
+#: A fixed-point row is looked at when it is this many times the median row's distance from its
+#: point, and named as misplaced when another point of its placement is 3 times nearer.
+MISPLACED_FACTOR = 10.0
+
+
+@dataclass(frozen=True)
+class Misplaced:
+    """A fixed-point row whose tip is at another point of its placement than its own (a ball
+    put in the other socket, or a row saved in the other socket's file).
+
+    Attributes:
+        row: its row number; point, near: the point it is filed under and the one it is at.
+        off_mm, at_mm: its distance from its own point's rows and from the other's [mm]
+            (each point's position: the median of its rows' tips).
+    """
+
+    row: int
+    point: str
+    near: str
+    off_mm: float
+    at_mm: float
+
+
+def misplaced_rows(
+    model: Model,
+    measurement: Measurement,
+    theta: np.ndarray,
+    data: Dataset,
+    extension: Extension | None = None,
+) -> list[Misplaced]:
+    """The rows of fixed-point data that sit at another point of their placement (points named
+    ``<placement>/<name>`` belong to one placement), by the calibrated model; else an empty list."""
+    if measurement.kind != "points" or data.labels is None:
+        return []
+    tips = Problem(model, measurement, data, extension).target_frames(theta)[2]
+    present = np.unique(data.labels)
+    centre = np.zeros((len(data.point_names), 3))
+    for p in present:  # the median: robust to the rows this looks for
+        centre[p] = np.median(tips[data.labels == p], axis=0)
+    own = np.linalg.norm(tips - centre[data.labels], axis=1)
+    place = [name.rpartition("/")[0] for name in data.point_names]
+    out = []
+    for i in np.flatnonzero(own > MISPLACED_FACTOR * np.median(own)):
+        label = int(data.labels[i])
+        others = [int(p) for p in present if p != label and place[p] == place[label]]
+        if not others:
+            continue
+        distance = np.linalg.norm(centre[others] - tips[i], axis=1)
+        j = int(np.argmin(distance))
+        if 3.0 * distance[j] < own[i]:
+            names = data.point_names
+            row = int(data.row_numbers[i])
+            out.append(Misplaced(row, names[label], names[others[j]], own[i] * 1e3, distance[j] * 1e3))
+    return out

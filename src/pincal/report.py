@@ -16,7 +16,7 @@ import pinocchio as pin
 from .calibration import Calibration
 from .data import Dataset
 from .effects import compliance_stiffness
-from .evaluation import ErrorStats, PlacementErrors, placement_errors
+from .evaluation import ErrorStats, PlacementErrors, misplaced_rows, placement_errors
 from .models import PoeModel
 
 _TO_DISPLAY = {"m": (1e3, "mm"), "rad": (1e3, "mrad")}
@@ -69,9 +69,9 @@ def extension_dict(cal: Calibration, data: Dataset | None = None) -> dict[str, A
     return out
 
 
-def report_dict(cal: Calibration, data: Dataset | None = None) -> dict[str, Any]:
-    """The report of ``contracts.md`` (and more); ``data``: the fitted poses, for the stiffness a
-    compliance implies."""
+def report_dict(cal: Calibration, data: Dataset | None = None, test: Dataset | None = None) -> dict[str, Any]:
+    """The report of ``contracts.md`` (and more); ``data``, ``test``: the fitted and held-out
+    poses, for the stiffness a compliance implies and the warnings."""
 
     def pair(before: ErrorStats | None, after: ErrorStats | None, urdf: ErrorStats | None) -> Any:
         if before is None or after is None:
@@ -116,14 +116,16 @@ def report_dict(cal: Calibration, data: Dataset | None = None) -> dict[str, Any]
         "excluded_poses": [{"row": row, "residual_mm": size} for row, size in cal.excluded],
         "parameters": parameter_rows(cal),
         "placements": [p.to_dict() for p in placements(cal, data)],
-        "warnings": report_warnings(cal, data),
+        "warnings": report_warnings(cal, data, test),
         "choice": None if cal.choice is None else cal.choice.to_dict(),
         "extension": extension_dict(cal, data),
         **extra,
     }
 
 
-def report_json(cal: Calibration, data: Dataset | None = None, **extra: Any) -> str:
+def report_json(
+    cal: Calibration, data: Dataset | None = None, test: Dataset | None = None, **extra: Any
+) -> str:
     """The report as JSON text (no NaN or infinity: those become null), with ``extra`` keys."""
 
     def clean(obj: Any) -> Any:
@@ -135,7 +137,7 @@ def report_json(cal: Calibration, data: Dataset | None = None, **extra: Any) -> 
             return [clean(v) for v in obj]
         return obj
 
-    return json.dumps(clean({**report_dict(cal, data), **extra}), indent=2) + "\n"
+    return json.dumps(clean({**report_dict(cal, data, test), **extra}), indent=2) + "\n"
 
 
 def placements(cal: Calibration, data: Dataset | None) -> list[PlacementErrors]:
@@ -144,7 +146,10 @@ def placements(cal: Calibration, data: Dataset | None) -> list[PlacementErrors]:
     if data is None:
         return []
     left_out = tuple(row for row, _ in cal.excluded)
-    return placement_errors(cal.model, cal.measurement, cal.theta, data, cal.extension, left_out)
+    misplaced = tuple(
+        m.row for m in misplaced_rows(cal.model, cal.measurement, cal.theta, data, cal.extension)
+    )
+    return placement_errors(cal.model, cal.measurement, cal.theta, data, cal.extension, left_out, misplaced)
 
 
 def _headline(stats: ErrorStats) -> float:
@@ -152,9 +157,10 @@ def _headline(stats: ErrorStats) -> float:
     return stats.point_mae_mm if stats.point_mae_mm is not None else stats.rms_mm
 
 
-def report_warnings(cal: Calibration, data: Dataset | None = None) -> list[str]:
+def report_warnings(cal: Calibration, data: Dataset | None = None, test: Dataset | None = None) -> list[str]:
     """What the user should know before trusting the result: held-out poses predicted worse
-    than by the nominal kinematics, placements whose rows disagree with themselves."""
+    than by the nominal kinematics, placements whose rows disagree with themselves, fixed-point
+    rows (fitted ``data`` or held-out ``test``) that sit at another point than their own."""
     out = []
     if cal.test_after is not None and cal.test_before is not None:
         after, before = _headline(cal.test_after), _headline(cal.test_before)
@@ -174,6 +180,25 @@ def report_warnings(cal: Calibration, data: Dataset | None = None) -> list[str]:
                 "left out as outliers: the fixture may have moved, or the ball slipped, while it was "
                 "recorded; record it again, or calibrate without its folder"
             )
+    for rows, which in ((data, "fitted"), (test, "held-out")):
+        if rows is not None:
+            out += _misplaced(cal, rows, which)
+    return out
+
+
+def _misplaced(cal: Calibration, data: Dataset, which: str) -> list[str]:
+    """One warning per pair of points (filed under, at) that has misplaced rows."""
+    found = misplaced_rows(cal.model, cal.measurement, cal.theta, data, cal.extension)
+    out = []
+    for point, near in dict.fromkeys((m.point, m.near) for m in found):
+        group = [m for m in found if (m.point, m.near) == (point, near)]
+        names = _names(tuple(data.row_name(m.row) for m in group), 6)
+        off, at = (f"{min(v):.2f}-{max(v):.2f}" for v in zip(*((m.off_mm, m.at_mm) for m in group)))
+        out.append(
+            f"{len(group)} {which} rows filed under point {point} sit at point {near} ({at} mm from its "
+            f"rows, {off} mm from {point}'s): the ball was in the other socket, or the rows were saved "
+            f"in the wrong file; move them to point {near}'s file: {names}"
+        )
     return out
 
 
@@ -253,7 +278,7 @@ def choice_lines(cal: Calibration, data: Dataset | None = None) -> list[str]:
     return lines
 
 
-def summary(cal: Calibration, data: Dataset | None = None) -> str:
+def summary(cal: Calibration, data: Dataset | None = None, test: Dataset | None = None) -> str:
     """A readable before/after table, the identifiability summary and what was chosen."""
     ident = cal.identifiability
     kind = cal.measurement.kind
@@ -289,8 +314,9 @@ def summary(cal: Calibration, data: Dataset | None = None) -> str:
         lines += [
             f"  {p.name:{width}s} {_fmt(p.after)}  {p.rows} rows"
             + (f", {p.left_out} left out" if p.left_out else "")
+            + (f" ({p.misplaced} at another point)" if p.misplaced else "")
             + ("  <- suspect" if p.suspect else "")
             for p in each
         ]
     lines += choice_lines(cal, data)
-    return "\n".join(lines + [f"warning: {w}" for w in report_warnings(cal, data)])
+    return "\n".join(lines + [f"warning: {w}" for w in report_warnings(cal, data, test)])

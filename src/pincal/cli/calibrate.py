@@ -88,7 +88,7 @@ def run(args: argparse.Namespace) -> int:
         **fit_options(args),
     )
     end_progress(progress)
-    print(summary(cal, data))
+    print(summary(cal, data, test))
     verdict = plausible(cal, data, args)
     files: list[tuple[str | Path, str | bytes]] = []
     extra: dict[str, Any] = {"plausibility": verdict.to_dict()}
@@ -101,7 +101,7 @@ def run(args: argparse.Namespace) -> int:
         files = list(corrected_files(cal, args.output, args.add_frame))
         extra.update(urdf=str(files[0][0]), sidecar=str(files[1][0]))
     if args.report is not None:
-        files.append((args.report, report_json(cal, data, **extra)))
+        files.append((args.report, report_json(cal, data, test, **extra)))
     atomic_write_many(files)  # every output or none
     if "urdf" in extra:
         print(f"corrected URDF written to {extra['urdf']}; registration and tool (not in a URDF) to ", end="")
