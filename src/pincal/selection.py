@@ -131,8 +131,13 @@ def _groups(problem: Problem, folds: int | None, seed: int) -> list[np.ndarray]:
     if problem.measurement.kind == "distance":  # the pairs the data has (all, Gao's or given)
         groups = [np.flatnonzero(np.isin(problem.pairs, h).any(axis=1)) for h in held]
         return [g for g in groups if len(g)]
-    rows = problem.row_poses()
-    return [np.flatnonzero(np.isin(rows, h)) for h in held]
+    group = np.empty(n_poses, dtype=int)  # each pose's group
+    for k, h in enumerate(held):
+        group[h] = k
+    of_row = group[problem.row_poses()]
+    order = np.argsort(of_row, kind="stable")
+    bounds = np.searchsorted(of_row[order], np.arange(len(held) + 1))
+    return [order[a:b] for a, b in zip(bounds[:-1], bounds[1:])]
 
 
 #: A group whose ``I - H_gg`` has an eigenvalue below this is determined by the fit alone.
