@@ -3,7 +3,9 @@
 Position and pose data: the norm of each pose's 3-D position error (and, for pose data, the
 angle of its orientation error). Distance data: ``|d_measured - d_model|`` over pairs of poses.
 Fixed-point data: each row's distance from its point's mean tip position, and MUKCa's two
-figures (:func:`pincal.fixed_points.point_errors`).
+figures (:func:`pincal.fixed_points.point_errors`); with several placements of a fixture, each
+placement's errors (:func:`placement_errors`: a placement that disagrees with itself is named),
+and rows filed under one point that sit at another (:func:`misplaced_rows`).
 """
 
 from __future__ import annotations
