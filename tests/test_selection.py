@@ -22,10 +22,11 @@ import numpy as np
 import pytest
 
 import pincal
-from pincal.crossval import fold_indices
+from pincal.crossval import fold_indices, held_out_rows
 from pincal.models import PlacementsModel
 from pincal.selection import Selection, cross_validate_selection, select_parameters
-from pincal.simulation import TrueRobot
+from pincal.simulation import TrueRobot, points_truth, simulate_points
+from pincal.solver import set_up
 
 NOISE = 3e-5  # 1σ of each measured coordinate [m]
 NOISE_FLOOR_MM = NOISE * 1e3 * np.sqrt(3.0)  # RMS of a 3-D noise vector [mm]
@@ -140,3 +141,22 @@ def test_held_out_fold_is_never_seen(get_robot: Callable[[str], pincal.Robot]) -
     assert dirty.chosen[0] == clean.chosen[0]  # fold 0 fits only the untouched poses
     assert dirty.after.rms_mm > clean.after.rms_mm  # ... and is judged on the corrupted ones
     assert len(clean.chosen) == folds and clean.after.n == len(fit)
+
+
+@pytest.mark.parametrize("folds", [None, 5])
+def test_held_out_rows_are_each_poses_rows_and_no_others(folds: int | None) -> None:
+    """Every residual row of a pose is in that pose's group (its fold's), no row is in two
+    groups, and a known distance's row (fixed points) is in none: it is never held out."""
+    robot = pincal.load_robot("ur5")
+    truth = points_truth(robot, 3)
+    sockets = np.array([[0.45, 0.0, 0.25], [0.45, 0.05, 0.25]])  # [m]
+    data = simulate_points(truth, sockets, 30, 5e-5, np.random.default_rng(0))
+    problem = set_up(robot, data, "placements", point_distances=(("0", "1", 0.05),)).problem
+    poses = problem.row_poses()
+    groups = held_out_rows(problem, folds, 0)
+    held = [np.array([i]) for i in range(len(data))] if folds is None else fold_indices(len(data), folds, 0)
+    assert len(groups) == len(held)
+    for rows, h in zip(groups, held):
+        np.testing.assert_array_equal(rows, np.flatnonzero(np.isin(poses, h)))
+    assert np.all(poses[np.concatenate(groups)] >= 0)
+    assert len(np.concatenate(groups)) == np.count_nonzero(poses >= 0) < len(poses)

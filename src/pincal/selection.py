@@ -27,13 +27,12 @@ from typing import Any
 
 import numpy as np
 
-from .crossval import cross_validate, fold_indices
+from .crossval import cross_validate, held_out_rows
 from .data import Dataset
 from .effects import Extension
 from .evaluation import ErrorStats
 from .fixed_points import blind_jacobian
 from .identifiability import RCOND
-from .measurements import Problem
 from .robots import Robot
 from .solver import SETUP_KEYS, Setup, register, set_up
 from .threads import limited
@@ -124,22 +123,6 @@ class Selection:
         }
 
 
-def _groups(problem: Problem, folds: int | None, seed: int) -> list[np.ndarray]:
-    """Residual rows of each held-out group (a pose, or a fold of poses)."""
-    n_poses = len(problem.data)
-    held = [np.array([i]) for i in range(n_poses)] if folds is None else fold_indices(n_poses, folds, seed)
-    if problem.measurement.kind == "distance":  # the pairs the data has (all, Gao's or given)
-        groups = [np.flatnonzero(np.isin(problem.pairs, h).any(axis=1)) for h in held]
-        return [g for g in groups if len(g)]
-    group = np.empty(n_poses, dtype=int)  # each pose's group
-    for k, h in enumerate(held):
-        group[h] = k
-    of_row = group[problem.row_poses()]
-    order = np.argsort(of_row, kind="stable")
-    bounds = np.searchsorted(of_row[order], np.arange(len(held) + 1))
-    return [order[a:b] for a, b in zip(bounds[:-1], bounds[1:])]
-
-
 #: A group whose ``I - H_gg`` has an eigenvalue below this is determined by the fit alone.
 SINGULAR = 1e-10
 
@@ -208,7 +191,7 @@ def selection_path(
     left, sv, _ = np.linalg.svd(jac[:, n_geo:], full_matrices=False)  # always fitted
     q = left[:, sv > tol]
     res = res - q @ (q.T @ res)
-    groups = _groups(problem, folds, seed)
+    groups = held_out_rows(problem, folds, seed)
     leave_out = _LeaveOut(q, groups)
     pairs = problem.measurement.kind == "distance"
     n_units, n_fit_units = (sum(len(g) for g in groups), len(res)) if pairs else (len(data), len(data))
