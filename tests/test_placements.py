@@ -92,7 +92,6 @@ def test_folder_of_placements_reads_every_row_at_its_own_point(tmp_path: Path) -
         np.testing.assert_allclose(read.q[read.labels == k], expected, rtol=1e-15, atol=1e-15)
 
 
-
 def test_mukca_tip_pose_files_are_not_read_as_sockets(tmp_path: Path) -> None:
     """MUKCa's recordings keep the robot's own tip poses beside the joints (``hole_0_pose.csv``:
     x,y,z and a quaternion, 7 numbers a row, as many as a Panda's joints): they are skipped, in
@@ -117,6 +116,7 @@ def test_mukca_tip_pose_files_are_not_read_as_sockets(tmp_path: Path) -> None:
     with pytest.raises(pincal.DataError, match="no hole_<name>.csv"):
         read_socket_folder(only_poses, robot.joint_names)
 
+
 def test_two_placements_calibrate_to_the_noise_floor_of_a_third(tmp_path: Path) -> None:
     """Fitted on ``front`` and ``left`` together (a distance in each), judged on ``low``: within
     1.3x of the true robot's own score there, the distance error at the means' noise."""
@@ -140,9 +140,7 @@ def test_two_placements_calibrate_to_the_noise_floor_of_a_third(tmp_path: Path) 
     assert cal.test_after.point_distance_error_mm <= 4 * NOISE * 1e3 * np.sqrt(2 / (N_ROWS / 2))
 
 
-def test_cli_calibrates_a_folder_of_placements(
-    capsys: pytest.CaptureFixture[str], tmp_path: Path
-) -> None:
+def test_cli_calibrates_a_folder_of_placements(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     """``pincal calibrate ur5 ROBOT_DIR --test PLACEMENT_DIR``: every placement fitted, the
     report's held-out figures those of the API's calibration."""
     _, data = _experiment()
@@ -281,3 +279,19 @@ def test_errors_of_a_subset_holding_one_point_have_no_distance(tmp_path: Path) -
     part_rows, part_off = point_errors(tips[first], held.subset(first), (("0", "1", DISTANCE),))
     assert len(part_off) == 0
     np.testing.assert_allclose(part_rows, rows[first], rtol=1e-12)
+
+
+def test_one_placement_is_told_to_record_more(tmp_path: Path) -> None:
+    """Fixed points of one placement (50 mm apart) get a note to record placements spread over
+    the workspace; a folder of placements, or points 0.5 m apart, get none."""
+    truth, data = _experiment()
+    robot = pincal.load_robot("ur5")
+    distances = (("0", "1", DISTANCE),)
+    folder = read_socket_folder(_write_folder(tmp_path, data), robot.joint_names)
+    far = simulate_points(
+        truth, np.array([[0.45, -0.25, 0.25], [0.45, 0.25, 0.25]]), N_ROWS, NOISE, np.random.default_rng(3)
+    )
+    for rows, noted in ((data["front"], True), (folder, False), (far, False)):
+        given = distances if rows is not far else (("0", "1", 0.5),)
+        cal = pincal.calibrate(robot, rows, "placements", params="auto", point_distances=given)
+        assert ("note: the points lie within 0.2 m" in pincal.summary(cal, rows)) == noted

@@ -267,3 +267,19 @@ def misplaced_rows(
             row = int(data.row_numbers[i])
             out.append(Misplaced(row, names[label], names[others[j]], own[i] * 1e3, distance[j] * 1e3))
     return out
+
+
+def point_spread(
+    model: Model,
+    measurement: Measurement,
+    theta: np.ndarray,
+    data: Dataset,
+    extension: Extension | None = None,
+) -> float:
+    """The largest distance between two fixed points' mean tip positions [m] (0 for one point):
+    how much of the workspace the rows of fixed-point data see."""
+    if measurement.kind != "points" or data.labels is None:
+        raise ValueError("point_spread needs fixed-point data")
+    tips = Problem(model, measurement, data, extension).target_frames(theta)[2]
+    means = np.array([tips[data.labels == p].mean(axis=0) for p in np.unique(data.labels)])
+    return float(np.max(np.linalg.norm(means[:, None] - means[None], axis=2)))
