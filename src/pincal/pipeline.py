@@ -40,11 +40,14 @@ def fit(
     f_scale: float = 1e-4,
     rcond: float = RCOND,
     nominal: np.ndarray | None = None,
+    every: Identifiability | None = None,
 ) -> Fit:
-    """Register (unless the registration-only θ ``nominal`` is given), find the identifiable set,
-    solve: θ, the registration-only θ, the set, the solver's result."""
+    """Register (unless the registration-only θ ``nominal`` is given), find the identifiable set
+    (``every``, when given, is the one of every parameter at ``nominal``: used for ``params``
+    None), solve: θ, the registration-only θ, the set, the solver's result."""
     nominal = register(setup) if nominal is None else nominal
-    ident = identifiable_set(setup, nominal, params, partial, rcond)
+    known = every if params is None else None
+    ident = identifiable_set(setup, nominal, params, partial, rcond) if known is None else known
     theta, result = solve(setup, nominal, ident.identifiable, loss, f_scale)
     return theta, nominal, ident, result
 
@@ -146,7 +149,7 @@ def calibrate(
     call = dict(options, **fit_options, params=params, extension=extension, payload=payload)
     given = ext if isinstance(ext, Extension) else None
     setup = set_up(robot, data, model, measure, extension=given, **options)
-    nominal = _checked(setup, wanted, fit_options)  # for "auto": refuse what "all" refuses
+    nominal, every = _checked(setup, wanted, fit_options)  # for "auto": refuse what "all" refuses
     from .choice import choose  # here: choice runs diagnose, which calls this function
     choice = choose(setup, wanted, ext, folds=folds, seed=seed, payload=payload, options=options,
                     fit_options=fit_options, progress=progress,
@@ -155,9 +158,9 @@ def calibrate(
         checked = wanted == "auto"  # every parameter passed the rank check: so does any subset
         if choice.extension is not None and given is None:
             setup = set_up(robot, data, model, measure, extension=choice.extension, **options)
-            nominal, checked = None, False
+            nominal, checked, every = None, False, None
         fit_options["partial"], wanted = partial or checked, choice.params
-    theta, nominal, ident, result = fit(setup, wanted, nominal=nominal, **fit_options)
+    theta, nominal, ident, result = fit(setup, wanted, nominal=nominal, every=every, **fit_options)
     bad, scores = screen_outliers(setup, theta, ident.identifiable, outliers or 0.0, f_scale)
     if bad.size:  # leave them out and start again: the choice too is made on the poses kept
         rest = dict(test=test, folds=folds, seed=seed, nested=nested, progress=progress)
@@ -203,11 +206,10 @@ def _judge(
 
 def _checked(
     setup: Setup, wanted: tuple[str, ...] | str | None, fit_options: dict[str, Any]
-) -> np.ndarray | None:
+) -> tuple[np.ndarray | None, Identifiability | None]:
     """For ``params="auto"``, refuse data that ``params="all"`` refuses (unless ``partial``) and
-    return the registration-only θ it computed on the way."""
+    return the registration-only θ and the identifiable set of every parameter it found."""
     if wanted != "auto" or fit_options["partial"]:
-        return None
+        return None, None
     nominal = register(setup)
-    identifiable_set(setup, nominal, None, False, fit_options["rcond"])
-    return nominal
+    return nominal, identifiable_set(setup, nominal, None, False, fit_options["rcond"])
