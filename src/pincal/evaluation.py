@@ -16,7 +16,7 @@ import numpy as np
 
 from .data import Dataset
 from .effects import Extension
-from .fixed_points import point_errors
+from .fixed_points import placement, point_errors, point_means
 from .measurements import Measurement, Problem
 from .models import Model
 
@@ -65,6 +65,11 @@ class ErrorStats:
         stats = cls.of(errors_m)
         off = float(np.mean(distance_errors_m)) * 1e3 if len(distance_errors_m) else None
         return replace(stats, point_mae_mm=stats.mean_mm, point_distance_error_mm=off)
+
+    @property
+    def headline_mm(self) -> float:
+        """The figure a report leads with [mm]: MUKCa's mean error for fixed points, else the RMS."""
+        return self.point_mae_mm if self.point_mae_mm is not None else self.rms_mm
 
     def to_dict(self) -> dict[str, float | int | None]:
         """JSON-ready dictionary (orientation keys only when present; for fixed-point data both
@@ -189,7 +194,7 @@ def placement_errors(
     """
     if measurement.kind != "points" or data.labels is None:
         return []
-    place = np.array([name.rpartition("/")[0] for name in data.point_names])[data.labels]
+    place = np.array([placement(name) for name in data.point_names])[data.labels]
     out = np.isin(data.row_numbers, left_out)
     places = [p for p in dict.fromkeys(place.tolist()) if ((place == p) & ~out).any()]
     if len(places) < 2:
@@ -253,7 +258,7 @@ def misplaced_rows(
     for p in present:  # the median: robust to the rows this looks for
         centre[p] = np.median(tips[data.labels == p], axis=0)
     own = np.linalg.norm(tips - centre[data.labels], axis=1)
-    place = [name.rpartition("/")[0] for name in data.point_names]
+    place = [placement(name) for name in data.point_names]
     out = []
     for i in np.flatnonzero(own > MISPLACED_FACTOR * np.median(own)):
         label = int(data.labels[i])
@@ -281,5 +286,5 @@ def point_spread(
     if measurement.kind != "points" or data.labels is None:
         raise ValueError("point_spread needs fixed-point data")
     tips = Problem(model, measurement, data, extension).target_frames(theta)[2]
-    means = np.array([tips[data.labels == p].mean(axis=0) for p in np.unique(data.labels)])
+    means = point_means(tips, data.labels, len(data.point_names))[np.unique(data.labels)]
     return float(np.max(np.linalg.norm(means[:, None] - means[None], axis=2)))

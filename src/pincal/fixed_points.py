@@ -97,6 +97,12 @@ def check_distances(points: tuple[str, ...], distances: tuple[PointDistance, ...
                 )
 
 
+def placement(name: str) -> str:
+    """The placement of the fixture a point belongs to: ``front`` for ``front/0``, ``""`` for a
+    point of data of one placement."""
+    return name.rpartition("/")[0]
+
+
 def placed_distances(
     names: Sequence[str], distances: tuple[PointDistance, ...]
 ) -> tuple[PointDistance, ...]:
@@ -107,7 +113,7 @@ def placed_distances(
     too (a model fitted on several placements, judged on one). A distance no point matches stays
     as written (:func:`check_distances` names it)."""
     there = set(names)
-    places = sorted({name.rpartition("/")[0] for name in names if "/" in name})
+    places = sorted({placement(name) for name in names if "/" in name})
     out: dict[tuple[str, str], float] = {}
     for a, b, d in distances:
         bare = (a.rpartition("/")[2], b.rpartition("/")[2])

@@ -16,7 +16,7 @@ import pinocchio as pin
 from .calibration import Calibration
 from .data import Dataset
 from .effects import compliance_stiffness
-from .evaluation import ErrorStats, PlacementErrors, misplaced_rows, placement_errors, point_spread
+from .evaluation import ErrorStats, Misplaced, PlacementErrors, misplaced_rows, placement_errors, point_spread
 from .models import PoeModel
 
 _TO_DISPLAY = {"m": (1e3, "mm"), "rad": (1e3, "mrad")}
@@ -81,7 +81,7 @@ def report_dict(cal: Calibration, data: Dataset | None = None, test: Dataset | N
             out["urdf"] = urdf.to_dict()
         return out
 
-    ident = cal.identifiability
+    ident, found = cal.identifiability, _findings(cal, data)
     extra: dict[str, Any] = {}
     if isinstance(cal.model, PoeModel):
         _, _, tool = cal.split()
@@ -115,8 +115,8 @@ def report_dict(cal: Calibration, data: Dataset | None = None, test: Dataset | N
         "solver": {"jacobian_evaluations": cal.n_evaluations, "message": cal.message},
         "excluded_poses": [{"row": row, "residual_mm": size} for row, size in cal.excluded],
         "parameters": parameter_rows(cal),
-        "placements": [p.to_dict() for p in placements(cal, data)],
-        "warnings": report_warnings(cal, data, test),
+        "placements": [p.to_dict() for p in found[0]],
+        "warnings": report_warnings(cal, data, test, found),
         "choice": None if cal.choice is None else cal.choice.to_dict(),
         "extension": extension_dict(cal, data),
         **extra,
@@ -140,16 +140,24 @@ def report_json(
     return json.dumps(clean({**report_dict(cal, data, test), **extra}), indent=2) + "\n"
 
 
+#: What the report says of fitted fixed-point data: each placement's errors, the misplaced rows.
+Findings = tuple[list[PlacementErrors], list[Misplaced]]
+
+
+def _findings(cal: Calibration, data: Dataset | None) -> Findings:
+    """Each placement's errors and the misplaced rows of the fitted ``data``, found once."""
+    if data is None:
+        return [], []
+    found = misplaced_rows(cal.model, cal.measurement, cal.theta, data, cal.extension)
+    left_out, misplaced = tuple(row for row, _ in cal.excluded), tuple(m.row for m in found)
+    each = placement_errors(cal.model, cal.measurement, cal.theta, data, cal.extension, left_out, misplaced)
+    return each, found
+
+
 def placements(cal: Calibration, data: Dataset | None) -> list[PlacementErrors]:
     """Each placement's errors after calibration, for fixed-point data of several placements
     (``data``: the fitted data); else an empty list."""
-    if data is None:
-        return []
-    left_out = tuple(row for row, _ in cal.excluded)
-    misplaced = tuple(
-        m.row for m in misplaced_rows(cal.model, cal.measurement, cal.theta, data, cal.extension)
-    )
-    return placement_errors(cal.model, cal.measurement, cal.theta, data, cal.extension, left_out, misplaced)
+    return _findings(cal, data)[0]
 
 
 #: Fixed points within this distance of each other are one placement of a fixture [m].
@@ -161,18 +169,17 @@ def _spread(cal: Calibration, data: Dataset) -> float:
     return point_spread(cal.model, cal.measurement, cal.theta, data, cal.extension)
 
 
-def _headline(stats: ErrorStats) -> float:
-    """The figure a report leads with [mm]: MUKCa's mean error for fixed points, else the RMS."""
-    return stats.point_mae_mm if stats.point_mae_mm is not None else stats.rms_mm
-
-
-def report_warnings(cal: Calibration, data: Dataset | None = None, test: Dataset | None = None) -> list[str]:
+def report_warnings(
+    cal: Calibration, data: Dataset | None = None, test: Dataset | None = None, found: Findings | None = None
+) -> list[str]:
     """What the user should know before trusting the result: held-out poses predicted worse
     than by the nominal kinematics, placements whose rows disagree with themselves, fixed-point
-    rows (fitted ``data`` or held-out ``test``) that sit at another point than their own."""
+    rows (fitted ``data`` or held-out ``test``) that sit at another point than their own;
+    ``found``: :func:`_findings` of ``data`` when already computed."""
+    each, misplaced = _findings(cal, data) if found is None else found
     out = []
     if cal.test_after is not None and cal.test_before is not None:
-        after, before = _headline(cal.test_after), _headline(cal.test_before)
+        after, before = cal.test_after.headline_mm, cal.test_before.headline_mm
         if after > before:
             out.append(
                 f"the calibrated model predicts the held-out poses worse than the nominal kinematics "
@@ -180,7 +187,7 @@ def report_warnings(cal: Calibration, data: Dataset | None = None, test: Dataset
                 "over to them; fit poses that cover where the robot works (sockets: several placements "
                 "at once), or keep the URDF"
             )
-    for p in placements(cal, data):
+    for p in each:
         if p.suspect:
             mae = float(p.after.point_mae_mm or 0.0)
             out.append(
@@ -189,15 +196,17 @@ def report_warnings(cal: Calibration, data: Dataset | None = None, test: Dataset
                 "left out as outliers: the fixture may have moved, or the ball slipped, while it was "
                 "recorded; record it again, or calibrate without its folder"
             )
-    for rows, which in ((data, "fitted"), (test, "held-out")):
-        if rows is not None:
-            out += _misplaced(cal, rows, which)
+    if data is not None:
+        out += _misplaced(misplaced, data, "fitted")
+    if test is not None:
+        out += _misplaced(
+            misplaced_rows(cal.model, cal.measurement, cal.theta, test, cal.extension), test, "held-out"
+        )
     return out
 
 
-def _misplaced(cal: Calibration, data: Dataset, which: str) -> list[str]:
-    """One warning per pair of points (filed under, at) that has misplaced rows."""
-    found = misplaced_rows(cal.model, cal.measurement, cal.theta, data, cal.extension)
+def _misplaced(found: list[Misplaced], data: Dataset, which: str) -> list[str]:
+    """One warning per pair of points (filed under, at) that has misplaced rows of ``data``."""
     out = []
     for point, near in dict.fromkeys((m.point, m.near) for m in found):
         group = [m for m in found if (m.point, m.near) == (point, near)]
@@ -316,7 +325,8 @@ def summary(cal: Calibration, data: Dataset | None = None, test: Dataset | None 
         name = data.row_name if data is not None else (lambda row: f"row {row}")
         rows = ", ".join(f"{name(row)} ({size:.3f} mm)" for row, size in cal.excluded)
         lines.append(f"outliers left out of the fit (residual far outside the others'): {rows}")
-    each = placements(cal, data)
+    found = _findings(cal, data)
+    each = found[0]
     if each:
         lines.append(f"per placement, after [mm], {stat}:")
         width = max(len(p.name) for p in each)
@@ -335,4 +345,4 @@ def summary(cal: Calibration, data: Dataset | None = None, test: Dataset | None 
             "all the others)"
         )
     lines += choice_lines(cal, data)
-    return "\n".join(lines + [f"warning: {w}" for w in report_warnings(cal, data, test)])
+    return "\n".join(lines + [f"warning: {w}" for w in report_warnings(cal, data, test, found)])
