@@ -32,7 +32,7 @@ import json  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
 from collections import Counter  # noqa: E402
-from dataclasses import dataclass  # noqa: E402
+from dataclasses import dataclass, replace  # noqa: E402
 from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
 
@@ -41,6 +41,8 @@ import numpy as np  # noqa: E402
 import pincal  # noqa: E402
 from pincal.diagnose import diagnose  # noqa: E402
 from pincal.evaluation import ErrorStats, evaluate  # noqa: E402
+from pincal.fixed_points import point_errors, point_means  # noqa: E402
+from pincal.measurements import Problem  # noqa: E402
 from pincal.point_files import read_socket_folder  # noqa: E402
 from pincal.report import placements  # noqa: E402
 
@@ -110,9 +112,7 @@ def pooled(robot_dir: Path, urdf: Path, model: str, folder: Path) -> tuple[list[
     return out, suspects
 
 
-def judge(
-    robot_dir: Path, urdf: Path, model: str, extend: str = "none"
-) -> tuple[list[Judged], Counter[str]]:
+def judge(robot_dir: Path, urdf: Path, model: str, extend: str = "none") -> tuple[list[Judged], Counter[str]]:
     """Calibrate on each placement, judge on the others; what diagnose names per placement (for
     the Pandas, whose URDF has no masses, with the bundled Panda's: ``--inertias panda``)."""
     robot = pincal.load_robot(urdf, tip="ball_link")
@@ -142,6 +142,59 @@ def judge(
                 after = evaluate(cal.model, cal.measurement, cal.theta, held, cal.extension)
                 out.append(Judged(robot_dir.name, train, test, urdf_err, after, seconds))
     return out, causes
+
+
+def synthetic(robot_dir: Path, urdf: Path, model: str, seed: int = 0) -> list[float]:
+    """The one-placement held-out MAEs [mm] (every train/test combination) on rows made again
+    from the floor model (the calibration on every placement): each configuration moved until the
+    model's ball is at its socket's mean, plus independent scatter as large as that placement's
+    own error."""
+    robot = pincal.load_robot(urdf, tip="ball_link")
+    options: dict[str, Any] = dict(params="auto", outliers=6.0, point_distances=DISTANCE)
+    every = pincal.calibrate(robot, read_socket_folder(robot_dir, robot.joint_names), model, **options)
+    rng = np.random.default_rng(seed)
+    made = {}
+    for place in sorted(p for p in robot_dir.iterdir() if p.is_dir()):
+        data = read_socket_folder(place, robot.joint_names)
+        tips = Problem(every.model, every.measurement, data, every.extension).target_frames(every.theta)[2]
+        errors, _ = point_errors(tips, data, ())
+        sigma = float(np.mean(errors)) / np.sqrt(8.0 / np.pi)  # [m] per axis: a 3-D Gaussian's mean norm
+        goal = point_means(tips, data.labels, len(data.point_names))[data.labels]
+        goal = goal + rng.normal(0.0, sigma, goal.shape)
+        q = data.q.copy()
+        for _ in range(5):  # Gauss-Newton on the joints: the ball to the goal
+            moved = replace(data, q=q)
+            problem = Problem(every.model, every.measurement, moved, every.extension)
+            jac = np.stack([problem.joint_sensitivity(every.theta, j) for j in range(q.shape[1])], axis=2)
+            miss = goal - problem.target_frames(every.theta)[2]
+            q = q + np.einsum("nij,nj->ni", np.linalg.pinv(jac), miss)
+        made[place.name] = replace(data, q=q)
+    held = []
+    for train, data in made.items():
+        cal = pincal.calibrate(robot, data, model, **options)
+        held += [
+            float(evaluate(cal.model, cal.measurement, cal.theta, other, cal.extension).point_mae_mm or 0.0)
+            for test, other in made.items()
+            if test != train
+        ]
+    return held
+
+
+def rigid_table(root: Path, rows: list[Judged], model: str) -> str:
+    """Per robot and for all Pandas: one placement's held-out MAE median [mm] on the real rows
+    and on the rows made again from the floor model (:func:`synthetic`)."""
+    made: dict[str, list[float]] = {}
+    for robot_dir in sorted((root / "data").iterdir()):
+        made[robot_dir.name] = synthetic(
+            robot_dir, root / "urdf" / URDFS[robot_dir.name.split("_")[0]], model
+        )
+    made["all Pandas"] = [v for name, held in made.items() if name.startswith("panda") for v in held]
+    lines = ["\none placement's held-out MAE median [mm], real rows / rows made again from the floor model"]
+    for name, held in made.items():
+        group = [r for r in rows if r.robot == name or (name == "all Pandas" and r.robot.startswith("panda"))]
+        real = np.median([float(r.after.point_mae_mm or 0.0) for r in group])
+        lines.append(f"  {name}: {real:.3f} / {np.median(held):.3f}")
+    return "\n".join(lines)
 
 
 def table(rows: list[Judged], causes: dict[str, Counter[str]], pools: list[Pooled]) -> str:
@@ -239,6 +292,11 @@ def main() -> None:
         help="calibrate with --extend auto (Pandas: with masses)",
     )
     parser.add_argument("--json", type=Path, help="write every judged combination here")
+    parser.add_argument(
+        "--synthetic",
+        action="store_true",
+        help="also the one-placement protocol on rows made again from the floor model",
+    )
     args = parser.parse_args()
     root = args.datasets / "mukca"
     start = time.perf_counter()
@@ -255,8 +313,10 @@ def main() -> None:
             pools += pool
             suspects += named
     print(table(rows, causes, pools))
-    named = "; ".join(suspects) or "none"
-    print(f"\nplacements a robot's calibration on every placement names as suspect: {named}")
+    listed = "; ".join(suspects) or "none"
+    print(f"\nplacements a robot's calibration on every placement names as suspect: {listed}")
+    if args.synthetic:
+        print(rigid_table(root, rows, args.model))
     plot(rows, args.plot)
     print(f"\nplot: {args.plot}; whole benchmark {time.perf_counter() - start:.0f} s")
     if args.json is not None:
