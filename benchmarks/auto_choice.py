@@ -71,6 +71,7 @@ def accuracy(robot_name: str, seeds: int) -> dict[str, Any]:
             row.update(error=f"{type(exc).__name__}: {exc}", ok=False)
             rows.append(row)
             continue
+        assert auto.choice is not None and auto.test_after is not None and full.test_after is not None
         params = auto.choice.params
         row["auto_rms_mm"] = auto.test_after.rms_mm
         row["all_rms_mm"] = full.test_after.rms_mm
@@ -107,6 +108,7 @@ def false_alarms(robot_name: str, seeds: int) -> dict[str, Any]:
             row.update(error=f"{type(exc).__name__}: {exc}", cause=None, ok=False)
             rows.append(row)
             continue
+        assert cal.choice is not None  # params="auto" records its choice
         ext = cal.choice.extension
         row["seconds"] = time.perf_counter() - start
         row["cause"] = None if ext is None else ext.label
@@ -131,7 +133,7 @@ def timing(robot_name: str, repeat: int) -> dict[str, Any]:
     """Part 3: median wall times of auto, all and auto with nested cross-validation [s]."""
     robot = pincal.load_robot(robot_name)
     _, fit, _ = pincal.simulate(robot, n_fit=TIMING_POSES, n_test=1, seed=0, noise=NOISE)
-    calls = {
+    calls: dict[str, dict[str, Any]] = {
         "auto": dict(params="auto"),
         "all": dict(params="all"),
         "auto_nested": dict(params="auto", nested=True),

@@ -114,7 +114,9 @@ class FigarohTiago:
         import yaml
         from figaroh.data.observations import PoseObservations
 
-        class TiagoCalibration(bc.BaseCalibration):  # as in figaroh-examples' tiago_tools.py
+        base: Any = bc.BaseCalibration
+
+        class TiagoCalibration(base):  # as in figaroh-examples' tiago_tools.py
             def cost_function(self, var: np.ndarray) -> np.ndarray:
                 pee = bc.calc_updated_fkm(self.model, self.data, var, self.q_measured, self.calib_config)
                 return self._compute_logmap_residuals(self.PEE_measured, pee)

@@ -159,7 +159,9 @@ def synthetic(robot_dir: Path, urdf: Path, model: str, seed: int = 0) -> list[fl
         tips = Problem(every.model, every.measurement, data, every.extension).target_frames(every.theta)[2]
         errors, _ = point_errors(tips, data, ())
         sigma = float(np.mean(errors)) / np.sqrt(8.0 / np.pi)  # [m] per axis: a 3-D Gaussian's mean norm
-        goal = point_means(tips, data.labels, len(data.point_names))[data.labels]
+        labels = data.labels
+        assert labels is not None  # read_socket_folder names each row's socket
+        goal = point_means(tips, labels, len(data.point_names))[labels]
         goal = goal + rng.normal(0.0, sigma, goal.shape)
         q = data.q.copy()
         for _ in range(5):  # Gauss-Newton on the joints: the ball to the goal

@@ -26,11 +26,14 @@ def main() -> None:
     ext = Extension.parse(robot, "joint_compliance:shoulder_lift_joint")
     truth = hide_effect(truth, ext, fit.q, 0.5e-3, seed=0)
     # a real elastic joint sags under its load: link angle = motor angle - τ/K, c = -1/K < 0
-    truth = replace(truth, effect=-abs(truth.effect))
+    assert truth.effect is not None  # hide_effect sets it
+    sag = -abs(truth.effect)
+    truth = replace(truth, effect=sag)
     fit = truth.measure(fit.q, 3e-5, None, seed=10)
     result = diagnose(robot, fit)
     print(result.summary())
-    print(f"hidden compliance {truth.effect[0]:.4g} rad/N·m (K = {-1 / truth.effect[0]:.4g} N·m/rad)")
+    effect = float(sag[0])  # [rad/(N·m)]
+    print(f"hidden compliance {effect:.4g} rad/N·m (K = {-1 / effect:.4g} N·m/rad)")
     print(f"plot written to {plot_diagnosis(result, fit, args.out)}")
 
 

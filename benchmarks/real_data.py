@@ -167,7 +167,7 @@ def bench_tiago(folder: Path, repeat: int, out: list[str]) -> tuple[list[Row], d
     details: dict[str, Any] = {}
     fig = {k: f"FIGAROH {a:.2f} / {b:.2f}" for k, (a, b) in FIGAROH.items()}
     base = f"pincal calibrate {folder}/tiago_48_schunk.urdf train.csv --tip {TIAGO_TIP} --test validation.csv"
-    runs = [
+    runs: list[tuple[str, dict[str, Any], str, str]] = [
         ("registration only", dict(params=[]), "registration", "(API: params=[])"),
         ("offsets", dict(model="offsets", params="all"), "offsets", "--model offsets --params all"),
         ("placements, all", dict(params="all"), "full", "--params all"),
@@ -228,6 +228,7 @@ def bench_cv(
     rows: list[Row] = []
     details: dict[str, Any] = {}
     base = f"{command} --model {model}" + (f" --measure {measure}" if measure else "")
+    runs: list[tuple[str, str, dict[str, Any], str]]
     runs = [(f"{m}, all", m, dict(params="all"), "--params all") for m in models]
     runs = [("registration only", model, dict(params=[]), "(API: params=[])"), *runs]
     runs += [(f"{model}, all", model, dict(params="all"), "--params all"), (f"{model}, auto", model, {}, "")]

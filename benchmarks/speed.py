@@ -171,11 +171,6 @@ def against_figaroh(folder: Path, repeat: int) -> None:
     robot, train, _ = load_tiago_data(folder)
     rival = FigarohTiago(folder)
     rival.prepare()
-    runs: dict[str, list[float]] = {
-        "pincal, selected (the command's default)": [],
-        "pincal, every parameter": [],
-    }
-    runs["FIGAROH full_params"] = []
     calls = {
         "pincal, selected (the command's default)": lambda: pincal.calibrate(robot, train, params="auto"),
         "pincal, every parameter": lambda: pincal.calibrate(robot, train),
