@@ -41,13 +41,14 @@ import numpy as np  # noqa: E402
 import pincal  # noqa: E402
 from pincal.diagnose import diagnose  # noqa: E402
 from pincal.evaluation import ErrorStats, evaluate  # noqa: E402
-from pincal.fixed_points import point_errors, point_means  # noqa: E402
+from pincal.fixed_points import point_means  # noqa: E402
 from pincal.measurements import Problem  # noqa: E402
 from pincal.point_files import read_socket_folder  # noqa: E402
 from pincal.report import placements  # noqa: E402
 
 URDFS = {"panda": "panda.urdf", "kuka": "iiwa14.urdf", "dinova": "gen3lite.urdf"}
 DISTANCE = (("0", "1", 0.05),)  # [m] between the sockets
+OPTIONS: dict[str, Any] = dict(params="auto", outliers=6.0, point_distances=DISTANCE)  # the command's
 FIGURE = Path(__file__).parent / "figures" / "mukca.png"
 
 
@@ -85,15 +86,17 @@ def placements_folder(places: list[Path], folder: Path) -> Path:
     return folder
 
 
-def pooled(robot_dir: Path, urdf: Path, model: str, folder: Path) -> tuple[list[Pooled], list[str]]:
+def pooled(
+    robot_dir: Path, urdf: Path, model: str, folder: Path
+) -> tuple[list[Pooled], list[str], pincal.Calibration]:
     """Leave one placement out: calibrate on all the others at once (the robot's folder of
-    placements, as ``pincal calibrate URDF ROBOT_DIR`` reads it), judge on the one left out; and
-    the placements the calibration on every placement names as suspect (its warnings)."""
+    placements, as ``pincal calibrate URDF ROBOT_DIR`` reads it), judge on the one left out; the
+    placements the calibration on every placement names as suspect (its warnings); and that
+    calibration (the floor model)."""
     robot = pincal.load_robot(urdf, tip="ball_link")
     places = sorted(p for p in robot_dir.iterdir() if p.is_dir())
-    options: dict[str, Any] = dict(params="auto", outliers=6.0, point_distances=DISTANCE)
     all_rows = read_socket_folder(robot_dir, robot.joint_names)
-    every = pincal.calibrate(robot, all_rows, model, **options)
+    every = pincal.calibrate(robot, all_rows, model, **OPTIONS)
     suspects = [
         f"{robot_dir.name}/{p.name} ({p.after.point_mae_mm:.3f} mm, the others' median "
         f"{p.others_mae_mm:.3f} mm; {p.left_out} of {p.rows} rows left out)"
@@ -104,12 +107,12 @@ def pooled(robot_dir: Path, urdf: Path, model: str, folder: Path) -> tuple[list[
     for place in places:
         others = placements_folder([p for p in places if p != place], folder / robot_dir.name / place.name)
         start = time.perf_counter()
-        cal = pincal.calibrate(robot, read_socket_folder(others, robot.joint_names), model, **options)
+        cal = pincal.calibrate(robot, read_socket_folder(others, robot.joint_names), model, **OPTIONS)
         seconds = time.perf_counter() - start
         held = read_socket_folder(place, robot.joint_names)
         held_err, floor = (evaluate(c.model, c.measurement, c.theta, held, c.extension) for c in (cal, every))
         out.append(Pooled(robot_dir.name, place.name, held_err, floor, seconds))
-    return out, suspects
+    return out, suspects, every
 
 
 def judge(robot_dir: Path, urdf: Path, model: str, extend: str = "none") -> tuple[list[Judged], Counter[str]]:
@@ -125,13 +128,7 @@ def judge(robot_dir: Path, urdf: Path, model: str, extend: str = "none") -> tupl
     for train, data in places.items():
         start = time.perf_counter()
         cal = pincal.calibrate(
-            robot if extend == "none" else masses or robot,
-            data,
-            model,
-            params="auto",
-            extension=extend,
-            outliers=6.0,
-            point_distances=DISTANCE,
+            robot if extend == "none" else masses or robot, data, model, extension=extend, **OPTIONS
         )
         seconds = time.perf_counter() - start
         found = diagnose(masses or robot, data, model, point_distances=DISTANCE)
@@ -144,25 +141,22 @@ def judge(robot_dir: Path, urdf: Path, model: str, extend: str = "none") -> tupl
     return out, causes
 
 
-def synthetic(robot_dir: Path, urdf: Path, model: str, seed: int = 0) -> list[float]:
+def synthetic(every: pincal.Calibration, robot_dir: Path, model: str, seed: int = 0) -> list[float]:
     """The one-placement held-out MAEs [mm] (every train/test combination) on rows made again
-    from the floor model (the calibration on every placement): each configuration moved until the
-    model's ball is at its socket's mean, plus independent scatter as large as that placement's
-    own error."""
-    robot = pincal.load_robot(urdf, tip="ball_link")
-    options: dict[str, Any] = dict(params="auto", outliers=6.0, point_distances=DISTANCE)
-    every = pincal.calibrate(robot, read_socket_folder(robot_dir, robot.joint_names), model, **options)
+    from the floor model ``every`` (the calibration on every placement, :func:`pooled`): each
+    configuration moved until the model's ball is at its socket's mean, plus independent scatter
+    as large as that placement's own error."""
+    robot = every.model.robot
     rng = np.random.default_rng(seed)
     made = {}
     for place in sorted(p for p in robot_dir.iterdir() if p.is_dir()):
         data = read_socket_folder(place, robot.joint_names)
         tips = Problem(every.model, every.measurement, data, every.extension).target_frames(every.theta)[2]
-        errors, _ = point_errors(tips, data, ())
-        sigma = float(np.mean(errors)) / np.sqrt(8.0 / np.pi)  # [m] per axis: a 3-D Gaussian's mean norm
         labels = data.labels
         assert labels is not None  # read_socket_folder names each row's socket
         goal = point_means(tips, labels, len(data.point_names))[labels]
-        goal = goal + rng.normal(0.0, sigma, goal.shape)
+        mae = float(np.mean(np.linalg.norm(tips - goal, axis=1)))  # [m] that placement's own error
+        goal = goal + rng.normal(0.0, mae / np.sqrt(8.0 / np.pi), goal.shape)  # a 3-D Gaussian's mean norm
         q = data.q.copy()
         for _ in range(5):  # Gauss-Newton on the joints: the ball to the goal
             moved = replace(data, q=q)
@@ -173,7 +167,7 @@ def synthetic(robot_dir: Path, urdf: Path, model: str, seed: int = 0) -> list[fl
         made[place.name] = replace(data, q=q)
     held = []
     for train, data in made.items():
-        cal = pincal.calibrate(robot, data, model, **options)
+        cal = pincal.calibrate(robot, data, model, **OPTIONS)
         held += [
             float(evaluate(cal.model, cal.measurement, cal.theta, other, cal.extension).point_mae_mm or 0.0)
             for test, other in made.items()
@@ -182,14 +176,10 @@ def synthetic(robot_dir: Path, urdf: Path, model: str, seed: int = 0) -> list[fl
     return held
 
 
-def rigid_table(root: Path, rows: list[Judged], model: str) -> str:
+def rigid_table(root: Path, rows: list[Judged], floors: dict[str, pincal.Calibration], model: str) -> str:
     """Per robot and for all Pandas: one placement's held-out MAE median [mm] on the real rows
-    and on the rows made again from the floor model (:func:`synthetic`)."""
-    made: dict[str, list[float]] = {}
-    for robot_dir in sorted((root / "data").iterdir()):
-        made[robot_dir.name] = synthetic(
-            robot_dir, root / "urdf" / URDFS[robot_dir.name.split("_")[0]], model
-        )
+    and on the rows made again from each robot's floor model (:func:`synthetic`)."""
+    made = {name: synthetic(every, root / "data" / name, model) for name, every in floors.items()}
     made["all Pandas"] = [v for name, held in made.items() if name.startswith("panda") for v in held]
     lines = ["\none placement's held-out MAE median [mm], real rows / rows made again from the floor model"]
     for name, held in made.items():
@@ -306,19 +296,20 @@ def main() -> None:
     pools: list[Pooled] = []
     causes: dict[str, Counter[str]] = {}
     suspects: list[str] = []
+    floors: dict[str, pincal.Calibration] = {}
     with tempfile.TemporaryDirectory() as folder:
         for robot_dir in sorted((root / "data").iterdir()):
             urdf = root / "urdf" / URDFS[robot_dir.name.split("_")[0]]
             judged, causes[robot_dir.name] = judge(robot_dir, urdf, args.model, args.extend)
             rows += judged
-            pool, named = pooled(robot_dir, urdf, args.model, Path(folder))
+            pool, named, floors[robot_dir.name] = pooled(robot_dir, urdf, args.model, Path(folder))
             pools += pool
             suspects += named
     print(table(rows, causes, pools))
     listed = "; ".join(suspects) or "none"
     print(f"\nplacements a robot's calibration on every placement names as suspect: {listed}")
     if args.synthetic:
-        print(rigid_table(root, rows, args.model))
+        print(rigid_table(root, rows, floors, args.model))
     plot(rows, args.plot)
     print(f"\nplot: {args.plot}; whole benchmark {time.perf_counter() - start:.0f} s")
     if args.json is not None:
