@@ -621,3 +621,50 @@ def test_check_urdf_rejects_what_urdfdom_cannot_parse(check_urdf: Callable[[byte
     )
     with pytest.raises(AssertionError, match="check_urdf"):
         check_urdf(text)
+
+
+# 6. The document's head, however it is spelled ----------------------------------------------------
+
+#: Heads of a URDF document before the robot's first child: each must come back as written.
+HEADS = {
+    "start tag over two lines": b'<?xml version="1.0"?>\n<robot\n    xmlns:xacro="http://ros.org/wiki/xacro" name="ur5">',
+    "attributes one per line": b'<robot\n  name="ur5"\n  xmlns:xacro="http://ros.org/wiki/xacro"\n>',
+    "comment naming <robot>": b"<!-- a <robot> of ours -->\n<!-- two\nlines -->\n<robot name=\"ur5\">",
+    "doctype": b'<?xml version="1.0"?>\n<!DOCTYPE robot>\n<robot name="ur5">',
+    "byte-order mark": b'\xef\xbb\xbf<?xml version="1.0" encoding="UTF-8"?>\n<robot name="ur5">',
+    "no declaration": b'<robot name="ur5">',
+}
+
+
+@pytest.mark.parametrize("head", HEADS)
+def test_document_head_kept_and_loadable(
+    check_urdf: Callable[[bytes | Path], None], tmp_path: Path, head: str
+) -> None:
+    """A URDF whose root start tag spans lines, or with comments, a doctype or a byte-order mark
+    before it, exports to a file that loads and is the identified model, its head as written.
+
+    Args:
+        check_urdf: asserts that urdfdom accepts a URDF (skips when it is not installed).
+        tmp_path: a fresh folder.
+        head: the name of the head in :data:`HEADS`.
+    """
+    text = Path(bundled_urdf("ur5")).read_bytes()
+    start = text.index(b"<robot ")
+    body = text[text.index(b">", start) + 1 :]
+    source = tmp_path / "in.urdf"
+    source.write_bytes(HEADS[head] + body)
+    robot = pincal.load_robot(str(source), tip="tool0")
+    _, fit, _ = pincal.simulate(robot, n_fit=40, n_test=0, seed=3)
+    cal = pincal.calibrate(robot, fit, "placements")
+    path, _ = write_corrected_urdf(cal, tmp_path / "out.urdf")
+    written = path.read_bytes()
+    before_root = HEADS[head][: HEADS[head].rindex(b"<robot")]
+    assert written.startswith(before_root or b"<?xml")
+    assert written.count(b"<robot") == 1 + before_root.count(b"<robot")
+    check_urdf(path)
+    exported = pincal.load_robot(str(path), tip="tool0")
+    q = robot.random_configurations(50, np.random.default_rng(5))
+    _, positions = cal.base_T_tip(q)
+    got = np.array([exported.frame_placement(qi).translation for qi in q])
+    assert np.abs(got - positions).max() <= TOL
+    assert np.abs(got - np.array([robot.frame_placement(qi).translation for qi in q])).max() > 1e-5

@@ -134,7 +134,7 @@ def corrected_urdf(cal: Calibration, add_frame: str | None = None) -> bytes:
         _set_origin(ball, _origin(ball.find("origin")) * pin.SE3(np.eye(3), cal.split()[2].translation))
     if add_frame is not None:
         _add_frame(root, robot.tip, add_frame, cal)
-    return _prolog(_source(robot), root) + etree.tostring(root, encoding="UTF-8") + b"\n"
+    return _prolog(_source(robot)) + etree.tostring(root, encoding="UTF-8") + b"\n"
 
 
 def _ball_joint(root: etree._Element, cal: Calibration) -> etree._Element | None:
@@ -149,12 +149,23 @@ def _ball_joint(root: etree._Element, cal: Calibration) -> etree._Element | None
     return None
 
 
-def _prolog(source: bytes, root: etree._Element) -> bytes:
-    """The input's bytes before the root element (declaration, comments), kept as written."""
-    lines = source.split(b"\n")[: root.sourceline]
-    last = lines[-1]
-    start = last.find(b"<" + root.tag.encode())
-    prolog = b"\n".join([*lines[:-1], last[: max(start, 0)]])
+def _prolog(source: bytes) -> bytes:
+    """The input's bytes before the root element (declaration, comments, doctype), kept as
+    written: everything before the first ``<`` that opens an element (the root's start tag may
+    span several lines, with its attributes on the next)."""
+    pos = 3 if source.startswith(b"\xef\xbb\xbf") else 0  # a UTF-8 byte-order mark
+    ends = {b"<?": b"?>", b"<!--": b"-->", b"<!": b">"}
+    while True:
+        while source[pos : pos + 1].isspace():
+            pos += 1
+        opener = next((o for o in ends if source.startswith(o, pos)), None)
+        if opener is None:
+            break
+        end = source.find(ends[opener], pos + len(opener))
+        if end < 0:
+            break
+        pos = end + len(ends[opener])
+    prolog = source[:pos]
     return prolog if prolog.strip() else b'<?xml version="1.0" encoding="UTF-8"?>\n'
 
 
