@@ -447,6 +447,14 @@ def test_parse_point_distances_refuses_malformed_items(text: str) -> None:
         parse_point_distances(text, "mm")
 
 
+@pytest.mark.parametrize("text", ["0,1=40;0,1=50", "0,1=50;1,0=50", "a,b=1;b,c=2;c,b=2"])
+def test_parse_point_distances_refuses_a_pair_given_twice(text: str) -> None:
+    """In either order, the same value or another: the fit would keep one silently, or split the
+    difference."""
+    with pytest.raises(DataError, match="twice"):
+        parse_point_distances(text, "mm")
+
+
 def test_a_distance_naming_an_unknown_point_is_refused() -> None:
     _, fit, _ = _experiment("ur5")
     with pytest.raises(DataError, match="'7'.*0, 1"):
@@ -536,6 +544,27 @@ def test_cli_calibrate_points_end_to_end(
         link = parent.frame_placement(q) * nominal_last
         assert np.linalg.norm(link.translation - tips[i]) <= 1e-9
         assert np.linalg.norm(pin.log3(link.rotation.T @ rot[i])) <= 1e-9
+
+
+@pytest.mark.parametrize("distance", ["5", "0.05", "500"])
+def test_cli_refuses_a_known_distance_the_robot_cannot_have(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, ur5_files: tuple[Path, Path, Path], distance: str
+) -> None:
+    """A wrong ``--point-distance`` (5 mm, metres typed for millimetres) would shrink the arm until
+    its sockets are that far apart, with perfect-looking figures: the nominal robot puts them
+    about 50 mm apart, so it is refused, naming the option; nothing is written. The true value
+    passes the same check."""
+    data, _, _ = ur5_files
+    urdf = tmp_path / "out.urdf"
+    code, out, err = _run(
+        capsys, "calibrate", "ur5", data, "--point-distance", f"0,1={distance}", "--units", "mm", "-o", urdf
+    )
+    assert code == 2 and "corrected URDF written" not in out
+    assert err.count("\n") == 1 and err.startswith("pincal: error:")
+    assert "known distance" in err and "--point-distance" in err
+    assert not urdf.exists()
+    code, _, err = _run(capsys, "calibrate", "ur5", data, "--point-distance", "0,1=50", "--units", "mm")
+    assert code == 0, err
 
 
 def test_cli_reads_a_folder_of_holes(

@@ -199,6 +199,12 @@ def test_held_out_poses_predicted_worse_than_nominal_are_warned() -> None:
         assert all("worse than the nominal kinematics" in w for w in said)
         assert ("warning: " in pincal.summary(cal, data)) == worse
         assert pincal.report_dict(cal, data)["warnings"] == said
+    # "After" equal to "before" to rounding (a calibration that changes nothing) is no loss.
+    before = cal.test_before
+    for factor, warned in ((1 + 1e-12, False), (1.001, False), (1.02, True)):
+        bumped = replace(before, rms_mm=before.rms_mm * factor, mean_mm=before.mean_mm * factor)
+        assert bumped.headline_mm == before.headline_mm * factor
+        assert len(report_warnings(replace(cal, test_after=bumped), fit)) == int(warned)
 
 
 @pytest.mark.parametrize("seed", [0, 1])

@@ -46,7 +46,8 @@ def parse_point_distances(text: str | None, units: str = "m") -> tuple[PointDist
     """``A,B=D[;C,E=F...]`` (D in ``units``) -> ((A, B, D [m]), ...).
 
     Raises:
-        DataError: a malformed item, a point paired with itself, or a distance that is not > 0.
+        DataError: a malformed item, a point paired with itself, a distance that is not > 0, or
+            a pair given twice (in either order).
     """
     if text is None or not text.strip():
         return ()
@@ -66,6 +67,13 @@ def parse_point_distances(text: str | None, units: str = "m") -> tuple[PointDist
             raise DataError(f"--point-distance {item!r}: a point's distance to itself is 0")
         if distance <= 0:
             raise DataError(f"--point-distance {item!r}: the distance must be positive")
+        twice = [d for a, b, d in out if {a, b} == set(pair)]
+        if twice:
+            same = "twice" if abs(twice[0] - distance) <= 1e-12 else f"twice, {twice[0] / UNITS[units]:g} and"
+            raise DataError(
+                f"--point-distance gives the distance between {pair[0]} and {pair[1]} {same} "
+                f"{distance / UNITS[units]:g} {units}: give each pair once"
+            )
         out.append((pair[0], pair[1], distance))
     return tuple(out)
 

@@ -23,6 +23,9 @@ the robot's size (:func:`robot_size`, the lengths of its chain).
   by its effect on the measured point, not parameter by parameter: with data that hardly sees
   some combination of parameters (fixed points), two large corrections that cancel each other,
   or one the registration takes back, are no sign of a wrong reading.
+- ``distance`` (fixed points with known distances): how far the nominal robot puts the points
+  from their known distances, against :data:`DISTANCE` of the distance: the scale of the fit
+  comes from them, so a wrong value (or unit) would shrink or stretch the arm to match it.
 - ``gain``: the error after against before (both the fit's own measure: position, and the
   weighted orientation for pose data): a least-squares calibration never fits worse than the
   nominal robot it starts from, unless its data and model disagree.
@@ -74,6 +77,11 @@ ORIENTATION = 0.1
 BEFORE = WITHIN
 #: RMS displacement of the measured point by the model's corrections / robot size.
 CORRECTION = 0.1
+#: Fixed points: how far the nominal robot may put two points off their known distance, as a
+#: share of the distance, or at least :data:`DISTANCE_FLOOR` [m]: a real arm is within millimetres
+#: of its URDF, and a distance is a difference of two nearby positions (MUKCa's URDFs: 3.3 mm at
+#: worst on 50 mm). A wrong ``--point-distance`` (or its unit) would otherwise rescale the arm.
+DISTANCE, DISTANCE_FLOOR = 0.2, 0.01
 #: Error after / error before.
 GAIN = 1.1
 #: Per-pose residuals whose RMS exceeds their median this many times get a robust refit (a
@@ -197,7 +205,7 @@ def _robust_scores(cal: Calibration, problem: Problem) -> np.ndarray:
 
 
 def _model_checks(cal: Calibration, problem: Problem, size: float, loss: str) -> Iterator[Check]:
-    """``before``, ``correction``, ``gain`` and ``tool``."""
+    """``before``, ``distance``, ``correction``, ``gain`` and ``tool``."""
     weight = cal.measurement.rotation_weight
     before = score_mm(cal.train_before, weight) * 1e-3  # [m] as the fit weighs it (for the gain)
     # against the size, an orientation error counts by what it moves at the robot's reach,
@@ -219,6 +227,19 @@ def _model_checks(cal: Calibration, problem: Problem, size: float, loss: str) ->
         f"the nominal robot misses the {what} by {err_text(cal.train_before)}{how}, "
         f"{share_text(reach_before, size)}",
     )
+    known = [d for _, _, d in m.point_distances] if m.kind == "points" else []
+    off_mm = cal.train_before.point_distance_error_mm
+    if known and off_mm is not None:
+        slack = max(DISTANCE * min(known), DISTANCE_FLOOR)  # [m]
+        yield Check(
+            "distance",
+            off_mm * 1e-3 / slack,
+            1.0,
+            "ratio",
+            f"the nominal robot puts the points {mm_text(off_mm * 1e-3)} off the known "
+            f"distance{'s' if len(known) > 1 else ''} ({', '.join(mm_text(d) for d in known)}), more than "
+            f"{mm_text(slack)}",
+        )
     after, nominal = _points(problem, cal.theta), _points(problem, cal.nominal_theta)
     fit = kabsch(nominal, after)  # a motion of the whole set-up is no correction (gauges)
     moved = after - (nominal @ fit.rotation.T + fit.translation)
@@ -292,6 +313,10 @@ _FIXES = {
     "robot and --tip",
 }
 _FIXES["correction"] = _FIXES["before"]
+_FIXES["distance"] = (
+    "check --point-distance (the points' names, the value and its unit: --units) and the joint columns "
+    "(--degrees)"
+)
 
 
 def _fix(name: str, cal: Calibration) -> str:

@@ -20,7 +20,8 @@ class Check:
     """One comparison of a result with what a rigid arm can be.
 
     Attributes:
-        name: ``outliers``, ``fit``, ``orientation``, ``before``, ``correction``, ``gain``, ``tool``.
+        name: ``outliers``, ``fit``, ``orientation``, ``before``, ``distance``, ``correction``, ``gain``,
+            ``tool``.
         value: what the calibration shows, in ``unit``.
         limit: the largest plausible value.
         unit: ``ratio`` (a share or a factor) or ``rad``.
