@@ -13,6 +13,12 @@ unknown, 0.03 mm (3e-5 m) of Gaussian noise per coordinate, position data; model
 2. **False alarms** (``--seeds`` seeds per robot, default 20; 60 fitted poses, clean data: no
    hidden effect): ``params="auto", extension="auto"``. Acceptance: no cause named
    (``cal.choice.extension is None``) on any seed, i.e. 20 of 20.
+4. **Hidden effects** (``--effect-seeds`` seeds per robot and effect, default 5; 60 fitted
+   poses, 200 held-out): the truth of part 2 with a joint compliance, an encoder scale or a gear
+   harmonic on the second joint, moving the tip by 0.3 mm RMS (:func:`pincal.simulation.hide_effect`),
+   calibrated as ``pincal calibrate`` does by default (``extension="auto"``) and with
+   ``--extend none``; the held-out RMS of each against the noise floor (0.03 mm × √3). Acceptance:
+   the default is within 1.3 × the floor on every seed.
 3. **Time** (100 fitted poses, seed 0): median wall time of ``--repeat`` (default 7) calls of
    ``calibrate(params="auto")`` and of ``calibrate(params="all")`` on the same data, run
    alternately in the same process after one untimed warm-up of each. Acceptance: auto <= 1.5 x
@@ -25,9 +31,9 @@ below, before numpy loads, as in ``real_data.py``).
 Usage::
 
     python benchmarks/auto_choice.py [--seeds 20] [--fit-seeds 10] [--repeat 7]
-        [--robots ur5 panda] [--parts 1 2 3] [--quick] [--json FILE]
+        [--robots ur5 panda] [--parts 1 2 3 4] [--effect-seeds 5] [--quick] [--json FILE]
 
-``--quick`` runs 3 seeds in parts 1 and 2 and 3 timed repeats (about a minute).
+``--quick`` runs 3 seeds in parts 1, 2 and 4 and 3 timed repeats.
 """
 
 from __future__ import annotations
@@ -44,7 +50,10 @@ import sys  # noqa: E402
 import time  # noqa: E402
 from typing import Any  # noqa: E402
 
+import numpy as np  # noqa: E402
+
 import pincal  # noqa: E402
+from pincal.simulation import hide_effect  # noqa: E402
 
 #: Part 1: fitted and held-out poses.
 FIT_POSES, TEST_POSES = 150, 200
@@ -55,6 +64,9 @@ CLEAN_POSES = 60
 #: Part 3: fitted poses, and the largest accepted time ratio auto / all.
 TIMING_POSES, MAX_TIME_RATIO = 100, 1.5
 NOISE = 3e-5
+#: Part 4: the hidden effects (on the second joint, which gravity loads), their size at the tip
+#: [m RMS], and how far above the noise floor the default may land.
+EFFECTS, EFFECT_RMS, FLOOR_FACTOR = ("joint_compliance", "encoder_scale", "gear_harmonic"), 3e-4, 1.3
 
 
 def accuracy(robot_name: str, seeds: int) -> dict[str, Any]:
@@ -127,6 +139,32 @@ def false_alarms(robot_name: str, seeds: int) -> dict[str, Any]:
         "named": [{"seed": r["seed"], "cause": r["cause"]} for r in rows if r["cause"] is not None],
         "errors": [{"seed": r["seed"], "error": r["error"]} for r in rows if "error" in r],
     }
+
+
+def hidden_effects(robot_name: str, seeds: int) -> dict[str, Any]:
+    """Part 4: the command's default (``extension="auto"``) against ``extension=None`` on
+    simulations with a hidden effect."""
+    robot = pincal.load_robot(robot_name)
+    floor = NOISE * 3**0.5 * 1e3  # [mm] RMS of a 3-D noise vector
+    rows = []
+    for effect in EFFECTS:
+        ext = pincal.Extension.parse(robot, f"{effect}:{robot.joint_names[1]}")
+        for seed in range(seeds):
+            truth = pincal.random_truth(robot, seed)
+            probe = robot.random_configurations(200, np.random.default_rng(seed + 7))
+            hidden = hide_effect(truth, ext, probe, EFFECT_RMS, seed)
+            _, fit, test = pincal.simulate(robot, CLEAN_POSES, TEST_POSES, seed, NOISE, truth=hidden)
+            default = pincal.calibrate(robot, fit, params="auto", extension="auto", test=test)
+            rigid = pincal.calibrate(robot, fit, params="auto", test=test)
+            assert default.test_after is not None and rigid.test_after is not None
+            named = default.extension.label if default.extension is not None else None
+            ratio = default.test_after.rms_mm / floor
+            rows.append(
+                {"effect": ext.label, "seed": seed, "default_mm": default.test_after.rms_mm,
+                 "none_mm": rigid.test_after.rms_mm, "named": named, "ratio": ratio,
+                 "ok": ratio <= FLOOR_FACTOR}
+            )  # fmt: skip
+    return {"robot": robot_name, "floor_mm": floor, "rows": rows}
 
 
 def timing(robot_name: str, repeat: int) -> dict[str, Any]:
@@ -211,18 +249,42 @@ def print_timing(results: list[dict[str, Any]]) -> None:
         )
 
 
+def print_hidden_effects(results: list[dict[str, Any]]) -> None:
+    print(
+        f"\n4. a hidden effect ({EFFECT_RMS * 1e3:.1f} mm RMS at the tip), {CLEAN_POSES} fitted poses, "
+        f"held-out RMS on {TEST_POSES} [mm]: the default (--extend auto) and --extend none"
+    )
+    print(f"   {'robot':6s} {'effect':40s} {'default':>16s} {'--extend none':>16s}  named (seeds)")
+    for res in results:
+        by: dict[str, list[dict[str, Any]]] = {}
+        for r in res["rows"]:
+            by.setdefault(r["effect"], []).append(r)
+        for effect, rows in by.items():
+            d = [r["default_mm"] for r in rows]
+            n = [r["none_mm"] for r in rows]
+            named = sum(r["named"] == effect for r in rows)
+            spans = f"{min(d):7.3f}-{max(d):<8.3f} {min(n):7.3f}-{max(n):<8.3f}"
+            print(
+                f"   {res['robot']:6s} {effect:40s} {spans}  "
+                f"{named} of {len(rows)}{'' if all(r['ok'] for r in rows) else '  NOT AT THE FLOOR'}"
+            )
+        print(f"   {res['robot']:6s} noise floor {res['floor_mm']:.3f} mm; accepted up to {FLOOR_FACTOR} x")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=20, help="seeds per robot of part 2 (default 20)")
     parser.add_argument("--fit-seeds", type=int, default=10, help="seeds per robot of part 1 (default 10)")
     parser.add_argument("--repeat", type=int, default=7, help="timed runs of part 3 (default 7)")
     parser.add_argument("--robots", nargs="+", default=["ur5", "panda"], help="robots (default ur5 panda)")
-    parser.add_argument("--parts", nargs="+", type=int, choices=(1, 2, 3), default=[1, 2, 3])
+    parser.add_argument("--parts", nargs="+", type=int, choices=(1, 2, 3, 4), default=[1, 2, 3, 4])
+    parser.add_argument("--effect-seeds", type=int, default=5, help="seeds per robot and effect of part 4")
     parser.add_argument("--quick", action="store_true", help="3 seeds in parts 1 and 2, 3 timed runs")
     parser.add_argument("--json", metavar="FILE", help="write the numbers to FILE")
     args = parser.parse_args(argv)
     if args.quick:
         args.seeds, args.fit_seeds, args.repeat = min(args.seeds, 3), min(args.fit_seeds, 3), 3
+        args.effect_seeds = min(args.effect_seeds, 3)
 
     start = time.perf_counter()
     out: dict[str, Any] = {"robots": args.robots, "noise_m": NOISE}
@@ -235,6 +297,10 @@ def main(argv: list[str] | None = None) -> int:
         out["false_alarms"] = [false_alarms(name, args.seeds) for name in args.robots]
         print_false_alarms(out["false_alarms"])
         ok &= all(res["no_cause"] == res["seeds"] for res in out["false_alarms"])
+    if 4 in args.parts:
+        out["hidden_effects"] = [hidden_effects(name, args.effect_seeds) for name in args.robots]
+        print_hidden_effects(out["hidden_effects"])
+        ok &= all(r["ok"] for res in out["hidden_effects"] for r in res["rows"])
     if 3 in args.parts:
         out["timing"] = [timing(name, args.repeat) for name in args.robots]
         print_timing(out["timing"])

@@ -134,12 +134,13 @@ def test_cli_default_is_auto_and_reports_the_choice(
     assert code == 0, err
     doc = json.loads(report.read_text())
     choice = doc["choice"]
-    api = pincal.calibrate(robot, fit, params="auto", outliers=6.0, test=test)
+    api = pincal.calibrate(robot, fit, params="auto", extension="auto", outliers=6.0, test=test)
     assert api.choice is not None and api.choice.params is not None
     assert choice["params"] == "auto" and choice["kept"] == list(api.choice.params)
     assert choice["cv_rms_mm"]["chosen"] < choice["cv_rms_mm"]["all"]
     assert [s["added"] for s in choice["selection"]["path"]][1:] == [*choice["kept"], *choice["left_out"]]
-    assert choice["cause"] == "none" and choice["extension"] == "none"
+    # the diagnosis ran (extension "auto" by default) and named nothing in this rigid truth
+    assert choice["cause"] == "none" and choice["extension"] == "auto" and choice["diagnosis"] is not None
     assert len(fit) <= NESTED_MAX_POSES and choice["nested"]["folds"] == 5
     assert doc["test"]["after"]["rms_mm"] == pytest.approx(api.test_after.rms_mm, rel=1e-9)
     assert "parameters:" in out and "chosen by leave-one-out" in out and "nested 5-fold" in out

@@ -229,7 +229,8 @@ def small(ur5: pincal.Robot, tmp_path_factory: pytest.TempPathFactory) -> dict[s
 def _fitted(capfd: pytest.CaptureFixture[str], data: Path, folder: Path, *more: str) -> np.ndarray:
     """The fitted parameter values and the RMS after, from the report."""
     report = folder / f"{data.stem}.json"
-    args = ["calibrate", "ur5", str(data), "--model", "offsets", "--params", "all", "--nested", "no", *more]
+    args = ["calibrate", "ur5", str(data), "--model", "offsets", "--params", "all", "--nested", "no"]
+    args += ["--extend", "none", *more]
     code = main([*args, "--report", str(report), "--force"])
     assert code == 0, capfd.readouterr().err
     rep = json.loads(report.read_text(encoding="utf-8"))

@@ -627,7 +627,9 @@ def test_check_urdf_rejects_what_urdfdom_cannot_parse(check_urdf: Callable[[byte
 
 #: Heads of a URDF document before the robot's first child: each must come back as written.
 HEADS = {
-    "start tag over two lines": b'<?xml version="1.0"?>\n<robot\n    xmlns:xacro="http://ros.org/wiki/xacro" name="ur5">',
+    "start tag over two lines": (
+        b'<?xml version="1.0"?>\n<robot\n  xmlns:xacro="http://ros.org/wiki/xacro" name="ur5">'
+    ),
     "attributes one per line": b'<robot\n  name="ur5"\n  xmlns:xacro="http://ros.org/wiki/xacro"\n>',
     "comment naming <robot>": b"<!-- a <robot> of ours -->\n<!-- two\nlines -->\n<robot name=\"ur5\">",
     "doctype": b'<?xml version="1.0"?>\n<!DOCTYPE robot>\n<robot name="ur5">',

@@ -9,12 +9,17 @@ angles radians.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 import pinocchio as pin
 
 from .errors import DataError
 from .kinematics import Chain, forward
 from .robots import Robot
+
+if TYPE_CHECKING:
+    from .simulation import TrueRobot
 
 
 def candidate_poses(
@@ -56,9 +61,11 @@ def candidate_poses(
         kept.append(q[_feasible(chain, q, point, floor + clearance, centre, reach)])
     out = np.concatenate(kept)
     if len(out) < n:
+        within = "" if reach is None else f" and within the reach of {reach:g} m"
         raise DataError(
-            f"only {len(out)} of {drawn} random configurations are above the floor and within reach: "
-            "lower the clearance, widen the reach or ask for fewer candidates"
+            f"only {len(out)} of {drawn} random configurations keep the moving joints and the measured "
+            f"point {floor + clearance:g} m above the floor (the clearance){within}: lower the "
+            "clearance, widen the reach or ask for fewer candidates"
         )
     return out[:n]
 
@@ -146,7 +153,8 @@ def socket_candidates(
         tool: the ball's centre on the tip (3,) [m] (default: the tip's origin).
 
     Raises:
-        DataError: a socket is out of reach, or too few configurations are above the floor.
+        DataError: a socket is out of reach (:func:`check_sockets`), or too few configurations
+            are above the floor.
     """
     from .models import PlacementsModel
     from .simulation import TrueRobot, simulate_points  # the same reaching as the simulator's
@@ -155,9 +163,16 @@ def socket_candidates(
     model = PlacementsModel(robot)
     nominal = TrueRobot(model, np.zeros(model.n_params), pin.SE3.Identity(), pin.SE3(np.eye(3), point))
     rng = np.random.default_rng(seed)
+    check_sockets(nominal, sockets, rng, margin)
     kept_q, kept_at = [], []
     for _ in range(10):
-        data = simulate_points(nominal, sockets, 2 * n, 0.0, rng, margin=margin, tol=1e-6)
+        try:
+            data = simulate_points(nominal, sockets, 2 * n, 0.0, rng, margin=margin, tol=1e-6)
+        except DataError:  # its message lists rows of a simulation: say what matters here
+            raise DataError(
+                f"some starts of the {2 * n} attempts did not reach their socket in 20 tries: the "
+                "sockets are at the edge of the arm's workspace; move them nearer its middle"
+            ) from None
         ok = _feasible(Chain.nominal(robot), data.q, point, clearance, np.zeros(3), None)
         kept_q.append(data.q[ok])
         kept_at.append(np.asarray(data.labels)[ok])
@@ -170,6 +185,76 @@ def socket_candidates(
         )
     order = rng.permutation(len(q))[:n]
     return q[order], at[order]
+
+
+#: Random starts of the reach check of each socket (damped least squares from each, at once).
+REACH_STARTS = 200
+
+
+def arm_reach(robot: Robot, tool: np.ndarray, samples: int = 20_000) -> tuple[np.ndarray, float, float]:
+    """How far the measured point gets from the first joint's origin.
+
+    Args:
+        robot: the robot.
+        tool: the measured point on the tip (3,) [m].
+        samples: random configurations for the estimate.
+
+    Returns:
+        The first joint's origin in the base frame (3,) [m]; the farthest the point gets among
+        ``samples`` random configurations [m]; an upper bound that no configuration passes, the
+        sum of the link lengths, prismatic strokes and the point's distance from the tip [m]
+        (infinite for an unlimited prismatic joint).
+    """
+    chain = Chain.nominal(robot)
+    origin = chain.placements[0].translation.copy()
+    stroke = np.maximum(np.abs(robot.lower), np.abs(robot.upper))[np.array(robot.prismatic, bool)]
+    links = sum(float(np.linalg.norm(c.translation)) for c in chain.placements[1:])
+    bound = links + float(np.sum(stroke)) + float(np.linalg.norm(tool))
+    q = robot.random_configurations(samples, np.random.default_rng(0))
+    frames = forward(chain, q)
+    far = np.linalg.norm(frames.tip_translation + frames.tip_rotation @ tool - origin, axis=1).max()
+    return origin, float(far), bound
+
+
+def check_sockets(truth: TrueRobot, sockets: np.ndarray, rng: np.random.Generator, margin: float) -> None:
+    """Refuse sockets the measured point cannot reach, before any search for many poses: those
+    beyond the arm's longest stretch (:func:`arm_reach`), and those that none of
+    :data:`REACH_STARTS` random starts of damped least squares reaches.
+
+    Args:
+        truth: the nominal robot with the ball's centre as its tool.
+        sockets: (K, 3) the sockets in the base frame [m].
+        rng: random generator of the starts.
+        margin: fraction of each joint range left out at both ends of the starts.
+
+    Raises:
+        DataError: one line naming the sockets out of reach, their distance from the first
+            joint's origin and the arm's reach.
+    """
+    from .simulation import _reach  # the simulator's reaching, without its many restarts
+
+    sockets = np.atleast_2d(np.asarray(sockets, float))
+    origin, far, bound = arm_reach(truth.robot, truth.tool.translation)
+    distance = np.linalg.norm(sockets - origin, axis=1)
+    out = distance > bound
+    inside = np.flatnonzero(~out)
+    if inside.size:
+        targets = np.repeat(sockets[inside], REACH_STARTS, axis=0)
+        starts = truth.robot.random_configurations(len(targets), rng, margin)
+        _, reached = _reach(truth, targets, starts, 1e-6)
+        out[inside] = ~reached.reshape(len(inside), REACH_STARTS).any(axis=1)
+    if not out.any():
+        return
+    xyz = lambda v: ", ".join(f"{c:g}" for c in v)  # noqa: E731
+    named = "; ".join(
+        f"socket {k} ({xyz(sockets[k])}) is {distance[k]:.3g} m from it"
+        + ("" if distance[k] > bound else f" but none of {REACH_STARTS} inverse-kinematics starts reached it")
+        for k in np.flatnonzero(out)
+    )
+    raise DataError(
+        f"--sockets out of the arm's reach: the measured point gets at most about {far:.3g} m from "
+        f"the first joint's origin ({xyz(origin)}), and {named}: check the coordinates and --units"
+    )
 
 
 #: Copies of each candidate's identification rows the planner holds at once (measured: 3 to 4).

@@ -27,6 +27,7 @@ import numpy as np
 from .crossval import CrossValidation
 from .diagnose import Diagnosis, diagnose
 from .effects import Extension, Payload
+from .errors import IdentifiabilityError
 from .selection import Selection, select_on
 from .solver import Setup, set_up
 
@@ -81,6 +82,7 @@ class ModelChoice:
         folds: K of the diagnosis' and the nested cross-validation.
         nested: the nested cross-validation of the whole procedure, if it ran.
         nested_note: why it did not run, or how it ran.
+        skipped: why ``extension="auto"``'s diagnosis did not run (too few poses for its folds).
     """
 
     params_mode: str
@@ -93,6 +95,7 @@ class ModelChoice:
     folds: int = 5
     nested: CrossValidation | None = field(default=None, repr=False)
     nested_note: str = "not asked for"
+    skipped: str | None = None
 
     def with_nested(self, judge: Callable[[], CrossValidation], forced: bool, n_poses: int) -> ModelChoice:
         """This choice with the nested cross-validation ``judge()`` run (always when ``forced``,
@@ -137,13 +140,14 @@ class ModelChoice:
             if cv is None
             else {"folds": cv.folds, "before": cv.before.to_dict(), "after": cv.after.to_dict()},
             "nested_note": self.nested_note,
+            "diagnosis_skipped": self.skipped,
         }
 
 
 def nested_policy(choice: ModelChoice, n_poses: int) -> str | None:
     """Why a nested cross-validation is skipped by default (None: run it)."""
-    if choice.extension_mode == "auto":
-        return "skipped: with --extend auto it would re-run the diagnosis on every fold (pass --nested yes)"
+    if choice.extension_mode == "auto" and choice.extension is not None:
+        return "skipped: with a cause named it would re-run the diagnosis on every fold (pass --nested yes)"
     if choice.params_mode != "auto":
         return "skipped: nothing was chosen"
     if n_poses < 2 * choice.folds:
@@ -204,19 +208,25 @@ def choose(
     kept: tuple[float, ModelChoice] | None = None
     cause: Extension | None = None
     for _ in range(MAX_ROUNDS):
-        diag = diagnose(
-            robot,
-            data,
-            model,  # type: ignore[arg-type]
-            measure,
-            folds,
-            seed,
-            payload=payload,
-            progress=progress,
-            params=None if params is None else list(params),
-            **options,
-            **fit_options,
-        )
+        try:
+            diag = diagnose(
+                robot,
+                data,
+                model,  # type: ignore[arg-type]
+                measure,
+                folds,
+                seed,
+                payload=payload,
+                progress=progress,
+                quick=True,
+                params=None if params is None else list(params),
+                **options,
+                **fit_options,
+            )
+        except IdentifiabilityError:  # a fold too small to fit: the geometry alone, said so
+            if rounds:
+                break
+            return replace(base, skipped=f"too few poses for the diagnosis' {folds} folds")
         named = diag.cause.extension if diag.cause else None
         label = named.label if named else None
         with_cause = cause.label if cause else None

@@ -51,7 +51,7 @@ def parse_point_distances(text: str | None, units: str = "m") -> tuple[PointDist
     """
     if text is None or not text.strip():
         return ()
-    out = []
+    out: list[PointDistance] = []
     for item in text.replace(" ", "").split(";"):
         names, _, value = item.partition("=")
         pair = names.split(",")

@@ -18,12 +18,15 @@ steps from a tenth to a hundredth of each joint's range (poses in sockets stay w
 ``benchmarks/planning_ratio.py`` measures both against random poses (README, "Planning").
 
 The predicted uncertainty follows from ``cov = F⁻¹``: parameter standard deviations, and the
-held-out RMS over the task poses ``√(tr(W cov) + noise)``.
+held-out RMS over the task poses ``√(tr(W cov) + noise)``. A plan with no more independent
+equations than identifiable parameters is refused; one with too few to spare once a fifth of the
+poses is left out (:func:`safe_poses`) is made, with a warning.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -74,6 +77,9 @@ class Plan:
         chosen: (N,) indices of the planned poses among the candidates, in the order chosen.
         planned, random: the two designs.
         sockets: (N,) the socket of each planned pose (fixed-point data), else None.
+        drawn: how many of ``candidates`` are random candidates (the rest are the refinement's
+            moves); None: all of them.
+        warnings: what the user should know about the plan (a thin margin of equations).
     """
 
     robot: Robot
@@ -87,6 +93,8 @@ class Plan:
     planned: Design
     random: Design
     sockets: np.ndarray | None = None
+    drawn: int | None = None
+    warnings: tuple[str, ...] = ()
 
     @property
     def q(self) -> np.ndarray:
@@ -96,11 +104,13 @@ class Plan:
     def summary(self) -> str:
         """Condition number and predicted uncertainties, planned against random poses."""
         rad = np.array([u == "rad" for u in self.units])
+        drawn = len(self.candidates) if self.drawn is None else self.drawn
+        moves = len(self.candidates) - drawn
+        among = f"{drawn} candidates" + (f" (and {moves} local moves of the chosen poses)" if moves else "")
         head = f"  {'':8s} {'cond':>7s} {'log det F':>10s} {'max σ [mm]':>11s} {'max σ [mrad]':>13s}"
         lines = [
             f"{len(self.q)} poses for {self.model}/{self.measure}, {len(self.names)} identifiable "
-            f"parameters, {'I' if self.criterion == 'i' else 'D'}-optimal among {len(self.candidates)} "
-            "candidates:",
+            f"parameters, {'I' if self.criterion == 'i' else 'D'}-optimal among {among}:",
             head + f" {'held-out RMS [mm]':>18s} {'of which model':>15s}",
         ]
         for label, d in (("planned", self.planned), ("random", self.random)):
@@ -190,8 +200,9 @@ def plan_poses(
         margin, clearance, reach, instrument: the feasible set, see :func:`candidate_poses`.
 
     Raises:
-        DataError: unknown measure or criterion, too few feasible candidates, no sockets.
-        IdentifiabilityError: fewer equations than identifiable parameters.
+        DataError: unknown measure or criterion, too few feasible candidates, no sockets or one out of reach.
+        IdentifiabilityError: no more independent equations than identifiable parameters (too few
+            to spare is said in ``Plan.warnings``, see :func:`safe_poses`).
     """
     _check(measure, criterion, n_poses, candidates, sockets)
     check_memory(robot, candidates, measure, n_poses)
@@ -206,7 +217,7 @@ def plan_poses(
     info = Information(
         robot, model, measure, cand, tools, ext, noise, rot_noise, rotation_weight, labels, point_distances
     )
-    _check_equations(measure, n_poses, int(info.free.sum()))
+    warnings, drawn = _check_equations(measure, n_poses, int(info.free.sum())), len(cand)
     weights = info.task_weights(np.atleast_2d(task), tools)
     rows, priors = info.candidate_rows, info.priors
     chosen = exchange(criterion, rows, len(cand), greedy(rows, len(cand), n_poses, priors), priors, weights)
@@ -215,8 +226,8 @@ def plan_poses(
     at = (None, None) if labels is None else (labels[chosen], labels[:n_poses])
     w = weights[info.best]  # the predictions' hypothesis, whose weights are already made
     planned, random = _design(info, cand[chosen], at[0], w), _design(info, cand[:n_poses], at[1], w)
-    chosen_ = np.array(chosen)
-    return Plan(robot, model, measure, criterion, names, units, cand, chosen_, planned, random, at[0])
+    plan = Plan(robot, model, measure, criterion, names, units, cand, np.array(chosen), planned, random)
+    return replace(plan, sockets=at[0], drawn=drawn, warnings=warnings)
 
 
 @dataclass(frozen=True)
@@ -288,15 +299,36 @@ def _equations(measure: str, n_poses: int) -> int:
     return n_poses * (6 if measure == "pose" else 3)
 
 
-def _check_equations(measure: str, n_poses: int, n_free: int) -> None:
-    """Refuse a plan with fewer independent equations than identifiable parameters."""
-    equations = _equations(measure, n_poses)
+#: The share of the poses a calibration may fit without: ``calibrate``'s cross-validation
+#: (``--extend auto``, 5 folds) fits on four fifths of them, and its outlier screen drops some.
+SPARE_SHARE = 0.2
+
+
+def safe_poses(measure: str, n_free: int) -> int:
+    """The fewest poses that leave more independent equations than ``n_free`` identifiable
+    parameters after a fifth of them (rounded up, at least one pose) is left out: about 1.25
+    times as many equations as parameters, and at least a pose's equations to spare."""
+    n = 1
+    while _equations(measure, n - math.ceil(SPARE_SHARE * n)) <= n_free:
+        n += 1
+    return n
+
+
+def _check_equations(measure: str, n_poses: int, n_free: int) -> tuple[str, ...]:
+    """Refuse a plan with no more independent equations than identifiable parameters; warn of
+    one with too few to spare (:func:`safe_poses`), which the calibration refuses, or cannot
+    cross-validate, once an outlier or a fold is left out. Returns the warnings."""
+    equations, need = _equations(measure, n_poses), safe_poses(measure, n_free)
+    said = f"{n_poses} poses give {equations} independent equations for {n_free} identifiable parameters"
     if equations <= n_free:
-        need = next(n for n in range(n_poses, n_poses + n_free + 8) if _equations(measure, n) > n_free)
-        raise IdentifiabilityError(
-            f"{n_poses} poses give {equations} independent equations for {n_free} identifiable "
-            f"parameters: plan more poses (at least {need})"
-        )
+        least = next(n for n in range(n_poses, need + 1) if _equations(measure, n) > n_free)
+        raise IdentifiabilityError(f"{said}: plan more poses (at least {least}; {need} for a safe margin)")
+    if n_poses >= need:
+        return ()
+    return (
+        f"{said}, a thin margin: calibrate refuses them if it leaves out an outlier or a "
+        f"cross-validation fold; plan {need} poses or more for a safe margin",
+    )
 
 
 def write_poses(path: str | Path, plan: Plan, degrees: bool = False) -> None:

@@ -169,8 +169,7 @@ def _spread(cal: Calibration, data: Dataset) -> float:
     return point_spread(cal.model, cal.measurement, cal.theta, data, cal.extension)
 
 
-#: A held-out error this many times the nominal kinematics' is "worse" (a refit of the nominal
-#: URDF, or a calibration that changes nothing, ties to rounding).
+#: A held-out error this many times the nominal kinematics' is "worse" (not a tie to rounding).
 WORSE = 1.01
 
 
@@ -270,7 +269,8 @@ def choice_lines(cal: Calibration, data: Dataset | None = None) -> list[str]:
         diag = choice.diagnosis
         if choice.extension is None or diag is None:
             best = diag.candidates[0].extension.label if diag is not None and diag.candidates else "none"
-            lines.append(f"cause: none (the diagnosis' test passed no candidate; best {best})")
+            why = choice.skipped or f"the diagnosis' test passed no candidate; best {best}"
+            lines.append(f"cause: none ({why})")
         else:
             lines.append(
                 f"cause: {choice.extension.label}, {choice.folds}-fold CV RMS "
@@ -279,14 +279,10 @@ def choice_lines(cal: Calibration, data: Dataset | None = None) -> list[str]:
         if diag is not None and diag.untried:
             lines.append(f"  {diag.untried}")
         if len(choice.rounds) > 1:
-            lines.append(
-                "  rounds: "
-                + "; ".join(
-                    f"{r.cause or 'none'} on {len(r.params or ()) or 'all'} parameters"
-                    f" ({r.extended_cv_rms_mm:.3f} mm)"
-                    for r in choice.rounds
-                )
-            )
+            each = (f"{r.cause or 'none'} on {len(r.params or ()) or 'all'} parameters"
+                    for r in choice.rounds)
+            scores = (f" ({r.extended_cv_rms_mm:.3f} mm)" for r in choice.rounds)
+            lines.append("  rounds: " + "; ".join(a + b for a, b in zip(each, scores)))
     ext = extension_dict(cal, data)
     if ext is not None and "stiffness" in ext:
         lines.append(f"  {ext['joint']}: {ext['stiffness']['verdict']}")

@@ -73,10 +73,11 @@ def _add_calibrate(sub: Any) -> None:
     )
     cal.add_argument(
         "--extend",
-        default="none",
+        default=None,
         metavar="auto|none|EFFECT:JOINT",
-        help="a non-geometric effect to identify too: 'auto' runs the diagnosis on the chosen geometry "
-        "and adds the cause it names, if its test passes; 'none' (default); or EFFECT:JOINT",
+        help="a non-geometric effect to identify too: 'auto' (default; 'none' for --measure points) runs the "
+        "diagnosis on the chosen geometry and adds the cause it names if its cross-validated test passes; "
+        "'none'; or EFFECT:JOINT",
     )
     cal.add_argument(
         "--folds", type=folds, default=5, help="folds of --extend auto's and the nested cross-validation"
@@ -171,16 +172,23 @@ def _add_plan(sub: Any) -> None:
         "--candidates", type=count, default=1000, help="random feasible candidates to choose from"
     )
     plan.add_argument("--seed", type=seed, default=0)
-    plan.add_argument("--units", choices=sorted(UNITS), default="m", help="unit of lengths given below")
+    plan.add_argument(
+        "--units", choices=sorted(UNITS), default="m",
+        help="unit of the lengths given below (--tool-point, --tool-tolerance, --sockets, --point-distance, "
+        "--clearance, --instrument, --reach); prismatic joints in --task and -o are in metres",
+    )
     plan.add_argument(
         "--criterion", choices=("i", "d"), default="i",
         help="i: least mean squared error of the calibrated tip over the task poses (default); "
         "d: largest log det of the information",
     )
     plan.add_argument(
-        "--task", type=Path, help="CSV of the poses the robot will work in (default: its whole workspace)"
+        "--task", type=Path,
+        help="CSV of the poses the robot will work in, a column per joint (default: its whole workspace)"
     )
-    plan.add_argument("--tool-point", type=vector3, help="the measured point on the tip, X,Y,Z, roughly")
+    plan.add_argument(
+        "--tool-point", type=vector3, help="the measured point on the tip, X,Y,Z, roughly [units]"
+    )
     plan.add_argument(
         "--tool-tolerance", type=reach,
         help="how far the real point may be from --tool-point [units] (default 0.01 m; 0.1 m from the tip)",
@@ -191,11 +199,18 @@ def _add_plan(sub: Any) -> None:
     plan.add_argument(
         "--point-distance", metavar="A,B=D[;...]", help="with --sockets: known distances between them [units]"
     )
-    plan.add_argument("--clearance", type=height, default=0.05, help="height above the floor z = 0 [m]")
-    plan.add_argument("--instrument", type=vector3, help="instrument position X,Y,Z in the base frame")
+    plan.add_argument(
+        "--clearance", type=height, help="height above the floor z = 0 [units] (default 0.05 m)"
+    )
+    plan.add_argument(
+        "--instrument", type=vector3, help="with --reach: instrument position X,Y,Z in the base frame [units]"
+    )
     plan.add_argument("--reach", type=reach, help="with --instrument: its range [units]")
     plan.add_argument("--extend", metavar="EFFECT:JOINT", help="plan for a non-geometric effect too")
-    plan.add_argument("--degrees", action="store_true", help="write revolute joint values in degrees")
+    plan.add_argument(
+        "--degrees", action="store_true",
+        help="revolute joint values in degrees: those read from --task and those written to -o",
+    )
     plan.add_argument("-o", "--output", type=Path, required=True, help="the poses (CSV, a column per joint)")
     _add_force(plan)
 

@@ -3,12 +3,19 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 from typing import Any
 
-from ..data import UNITS, read_joints
+import numpy as np
+
+from ..checks import check_limits
+from ..data import UNITS, Dataset, read_joints
 from ..errors import DataError
-from ..robots import load_robot
-from .common import check_outputs, robot_options, urdf_path
+from ..robots import Robot, load_robot
+from .common import check_outputs, robot_options, urdf_path, warn
+
+#: ``--clearance`` when not given [m].
+CLEARANCE = 0.05
 
 
 def run(args: argparse.Namespace) -> int:
@@ -21,12 +28,14 @@ def run(args: argparse.Namespace) -> int:
         raise DataError("--reach needs --instrument X,Y,Z (where the instrument stands)")
     if (args.sockets is not None) != (args.measure == "points"):
         raise DataError("--sockets X,Y,Z;X,Y,Z and --measure points go together: where the ball is held")
+    check_applicable(args)
     robot = load_robot(args.robot, tip=args.tip, **robot_options(args))
     scale = UNITS[args.units]
 
     def length(value: Any) -> Any:
         return None if value is None else value * scale
 
+    points = args.measure == "points"
     plan = plan_poses(
         robot,
         args.poses,
@@ -37,16 +46,42 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed,
         tool=length(args.tool_point),
         tool_tolerance=length(args.tool_tolerance),
-        task=None if args.task is None else read_joints(args.task, robot, args.degrees),
+        task=None if args.task is None else read_task(args.task, robot, args),
         sockets=length(args.sockets),
-        point_distances=parse_point_distances(args.point_distance, args.units),
+        point_distances=parse_point_distances(args.point_distance, args.units) if points else (),
         extension=args.extend,
-        clearance=args.clearance,
+        clearance=CLEARANCE if args.clearance is None else args.clearance * scale,
         reach=length(args.reach),
-        instrument=length(args.instrument),
+        instrument=length(args.instrument) if args.reach is not None else None,
     )
     print(plan.summary())
+    for text in plan.warnings:
+        warn(args, text)
     write_poses(args.output, plan, args.degrees)
     print(f"written to {args.output}")
     return 0
 
+
+def check_applicable(args: argparse.Namespace) -> None:
+    """Warn of options that would have no effect, instead of ignoring them in silence."""
+    if args.instrument is not None and args.reach is None:
+        warn(args, "ignored: --instrument (it only centres --reach, the instrument's range)")
+    if args.point_distance is not None and args.measure != "points":
+        warn(args, "ignored: --point-distance (fixed-point data only: --measure points --sockets)")
+
+
+def read_task(path: Path, robot: Robot, args: argparse.Namespace) -> np.ndarray:
+    """The task poses (T, n) [rad or m] of ``--task``, checked against the joint limits as
+    ``calibrate`` checks its data: refused far beyond them, said a little beyond.
+
+    Raises:
+        DataError: missing file or columns, non-numeric cells, a value outside the limits.
+    """
+    q = read_joints(path, robot, args.degrees)  # prismatic joints in metres, as -o writes them
+    try:
+        beyond = check_limits(robot, Dataset(robot.joint_names, q, np.zeros((len(q), 3))), args.degrees)
+    except DataError as exc:
+        raise DataError(f"--task {path}: {exc}") from None
+    if beyond:
+        warn(args, f"--task {path}: {beyond} joint value(s) beyond the URDF limits, kept as given")
+    return q
