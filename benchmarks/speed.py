@@ -5,6 +5,8 @@ Prints, with one BLAS thread (pincal's default) unless said otherwise:
 1. ``pincal.calibrate(robot, data, "placements")`` (every identifiable parameter) on 100 to
    100,000 simulated poses: UR5 position data and Panda pose data (seeded :func:`pincal.simulate`:
    0.5 mm / 0.5 mrad joint-origin errors, unknown registration and tool, 0.03 mm noise);
+   and what the command runs by default (``params="auto"``, ``extension="auto"``, the outlier
+   screen) against the same bound, up to 10,000 poses;
 2. the cost of one Levenberg-Marquardt iteration (the fit's time over its Jacobian evaluations)
    against its lower bound: a Python loop of Pinocchio's ``forwardKinematics`` +
    ``computeFrameJacobian`` over the same poses plus NumPy's QR of a matrix the size of the
@@ -104,6 +106,26 @@ def identification(sizes: tuple[int, ...]) -> None:
                   f" {per_iteration * 1e3:14.2f} {bound * 1e3:11.2f} {ratio:6.2f}")  # fmt: skip
 
 
+def default_call(sizes: tuple[int, ...]) -> None:
+    """Section 1b: what ``pincal calibrate`` runs by default (parameter choice, outlier screen,
+    the diagnosis of ``--extend auto``), against the same bound as one LM iteration."""
+    print("\n## The command's default: pincal.calibrate(..., params='auto', extension='auto', outliers=6)")
+    print(f"{'case':16s} {'poses':>7s} {'default [s]':>12s} {'bound [ms]':>11s} {'default / bound':>16s}")
+    for name, kind in CASES:
+        for n in sizes:
+            robot, data = experiment(name, kind, n)
+            repeat = 3 if n <= 10000 else 1
+            options: dict[str, Any] = dict(params="auto", extension="auto", outliers=6.0)
+            pincal.calibrate(robot, data.subset(range(min(n, 100))), "placements", kind, **options)  # warm-up
+            seconds = timed(repeat, pincal.calibrate, robot, data, "placements", kind, **options)[1]
+            setup = set_up(robot, data, "placements", kind)
+            start = register(setup)
+            free = identifiable_set(setup, start).identifiable
+            bound = lower_bound(robot, data, (len(setup.problem.residuals(start)), int(free.sum())), repeat)
+            ratio = seconds / bound
+            print(f"{name + ' ' + kind:16s} {n:7d} {seconds:12.3f} {bound * 1e3:11.2f} {ratio:16.0f}")
+
+
 def diagnosis(cases: tuple[tuple[str, str, int], ...]) -> None:
     """Section 3: the whole diagnosis, every candidate."""
     print("\n## Diagnosis: pincal.diagnose.diagnose(robot, data), every candidate, 5 folds")
@@ -172,7 +194,10 @@ def against_figaroh(folder: Path, repeat: int) -> None:
     rival = FigarohTiago(folder)
     rival.prepare()
     calls = {
-        "pincal, selected (the command's default)": lambda: pincal.calibrate(robot, train, params="auto"),
+        "pincal, the command's default": lambda: pincal.calibrate(
+            robot, train, params="auto", extension="auto"
+        ),
+        "pincal, selected (--extend none)": lambda: pincal.calibrate(robot, train, params="auto"),
         "pincal, every parameter": lambda: pincal.calibrate(robot, train),
         "FIGAROH full_params": rival.identify,
     }
@@ -207,6 +232,7 @@ def main(argv: list[str] | None = None) -> None:
     print(f"pincal {pincal.__version__}, one BLAS thread unless said, {os.cpu_count()} cores")
     with blas_threads(1):
         identification(sizes)
+        default_call(sizes[:-1] if len(sizes) > 3 else sizes)
         diagnosis((("ur5", "position", 100), ("panda", "pose", 100), ("ur5", "position", 1000)))
     threads((1000, 10000) if args.quick else (1000, 10000, 100000))
     command_line(3 if args.quick else 5)

@@ -344,6 +344,23 @@ def test_too_few_poses_says_how_many_and_that_is_enough(
     assert run.code == 0, run.err
 
 
+def test_too_few_poses_for_the_folds_count_all_the_poses(
+    capfd: pytest.CaptureFixture[str], sim: Sim, tmp_path: Path
+) -> None:
+    """``diagnose`` (5-fold cross-validation) on too few poses: the count it asks for is of all
+    the poses, more than given (not the fold's, fewer than given), and that many run."""
+    given = 12
+    few = _write(tmp_path / "few.csv", keep_rows(given)(list(sim.lines)))
+    line = _assert_refused(capfd, tmp_path, ["diagnose", "ur5", few], "measure at least", "--folds")
+    match = re.search(r"measure at least (\d+) poses", line)
+    assert match is not None, line
+    n = int(match.group(1))
+    assert given < n <= N_FIT
+    enough = _write(tmp_path / "enough.csv", keep_rows(n)(list(sim.lines)))
+    run = _run(capfd, "diagnose", "ur5", enough)
+    assert run.code == 0, run.err
+
+
 def test_bad_test_file_is_named(capfd: pytest.CaptureFixture[str], sim: Sim, tmp_path: Path) -> None:
     """A NaN in the ``--test`` file: the error names that file and row."""
     data = _write(tmp_path / "fit.csv", sim.lines)

@@ -16,7 +16,7 @@ import numpy as np
 
 from .calibration import Calibration
 from .data import Dataset
-from .errors import DataError
+from .errors import DataError, IdentifiabilityError
 from .evaluation import ErrorStats, pose_errors
 from .measurements import Problem, all_pairs
 from .models import Model
@@ -123,7 +123,18 @@ def cross_validate(
     cals = []
     for held in fold_indices(len(data), folds, seed):
         fit = np.setdiff1d(np.arange(len(data)), held)
-        cal = calibrate(robot, data.subset(fit), model, measure, **{**options, "partial": True})
+        try:
+            cal = calibrate(robot, data.subset(fit), model, measure, **{**options, "partial": True})
+        except IdentifiabilityError as exc:  # said of the fold, it would ask for fewer poses than given
+            if exc.poses_needed is None:
+                raise
+            fits = (n - -(-n // folds) for n in range(len(data), 10 * exc.poses_needed + folds + 1))
+            least = len(data) + next(k for k, n in enumerate(fits) if n >= exc.poses_needed)
+            raise IdentifiabilityError(
+                f"{folds}-fold cross-validation fits {len(fit)} of the {len(data)} poses at a time, which "
+                f"give too few equations: measure at least {least} poses, or use fewer folds (--folds)",
+                least,
+            ) from None
         cals.append(cal)
         for store, errs in zip(pooled, held_out_errors(cal, data, held)):
             store.append(errs)

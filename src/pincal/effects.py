@@ -72,9 +72,26 @@ class Payload:
         return cls(values[0], (values[1], values[2], values[3]))
 
 
+#: The last few :func:`gravity_torques` answers: a diagnosis asks for the same poses' torques
+#: for every loaded joint's compliance and backlash, and each costs a Pinocchio call per pose.
+_GRAVITY: list[tuple[Robot, Payload | None, bytes, np.ndarray]] = []
+_GRAVITY_KEPT = 4
+
+
 def gravity_torques(robot: Robot, q: np.ndarray, payload: Payload | None = None) -> np.ndarray:
     """Gravity torque each chain joint carries [N·m or N] at configurations ``q`` (N, n), from the
     URDF's inertias and an optional payload on the tip."""
+    key = np.ascontiguousarray(np.atleast_2d(q), dtype=float).tobytes()
+    for known, load, at, torques in _GRAVITY:
+        if known is robot and load == payload and at == key:
+            return torques.copy()
+    torques = _gravity_torques(robot, q, payload)
+    _GRAVITY.insert(0, (robot, payload, key, torques.copy()))
+    del _GRAVITY[_GRAVITY_KEPT:]
+    return torques
+
+
+def _gravity_torques(robot: Robot, q: np.ndarray, payload: Payload | None) -> np.ndarray:
     model = robot.model
     if payload is not None and payload.mass > 0:
         model = pin.Model(robot.model)  # a copy: the robot's own model is not changed

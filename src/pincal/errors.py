@@ -20,7 +20,15 @@ class DataError(PincalError):
 
 
 class IdentifiabilityError(PincalError):
-    """The data cannot identify what was asked (too few poses, rank deficiency)."""
+    """The data cannot identify what was asked (too few poses, rank deficiency).
+
+    Attributes:
+        poses_needed: the fewest poses that would do, when that is the trouble (else None).
+    """
+
+    def __init__(self, message: str, poses_needed: int | None = None) -> None:
+        super().__init__(message)
+        self.poses_needed = poses_needed
 
 
 class OutputError(PincalError):

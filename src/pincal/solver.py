@@ -267,10 +267,9 @@ def identifiable_set(
         n_needed = check_rank(problem, theta, jacobian, setup.scale, candidates, rcond)
     if n_res <= n_needed:
         per_pose = max(1, n_res // max(1, n_poses))
-        raise IdentifiabilityError(
-            f"{n_poses} poses give {n_res} equations for {n_needed} identifiable "
-            f"parameters: measure at least {n_needed // per_pose + 2} poses"
-        )
+        least = n_needed // per_pose + 2
+        said = f"{n_poses} poses give {n_res} equations for {n_needed} identifiable parameters"
+        raise IdentifiabilityError(f"{said}: measure at least {least} poses", least)
     return ident
 
 
