@@ -520,6 +520,8 @@ def test_cli_calibrate_points_end_to_end(
                 assert isinstance(stats[key], float) and stats[key] >= 0.0, (part, when, key)
     assert report["test"]["after"]["rms_mm"] < report["test"]["before"]["rms_mm"] / 5
     assert not any("scale" in g for g in report["not_identifiable"])
+    # --extend defaults to none here: one fixture's rows cannot tell an effect on another placement
+    assert report["choice"]["extension"] == "none" and report["choice"]["diagnosis"] is None
 
     robot = _robot("ur5")
     held = pincal.read_csv(test, robot.joint_names, units="mm")
