@@ -59,7 +59,7 @@ import pincal  # noqa: E402
 from pincal.data import Dataset, atomic_write, read_table, write_csv  # noqa: E402
 from pincal.outliers import THRESHOLD  # noqa: E402
 from pincal.registration import quaternions  # noqa: E402
-from pincal.report import choice_lines  # noqa: E402
+from pincal.summary_table import choice_lines  # noqa: E402
 
 T = TypeVar("T")
 #: FIGAROH on TIAGo (train / validation RMS [mm]) and its identification step [s], this machine kind.

@@ -42,7 +42,7 @@ from pincal.errors import DataError, PincalError
 from pincal.fixed_points import parse_point_distances, point_errors
 from pincal.kinematics import Chain, forward
 from pincal.point_files import read_socket_folder
-from pincal.report import report_dict
+from pincal.report import report_dict, report_warnings
 from pincal.simulation import TrueRobot, ball_positions, hide_effect, points_truth, simulate_points
 
 #: 1σ of each coordinate of where the hand holds the ball [m].
@@ -453,6 +453,18 @@ def test_parse_point_distances_refuses_a_pair_given_twice(text: str) -> None:
     difference."""
     with pytest.raises(DataError, match="twice"):
         parse_point_distances(text, "mm")
+
+
+def test_held_out_points_named_otherwise_are_said_unjudged() -> None:
+    """A held-out placement whose points have other names than the fitted ones: its distance
+    error cannot be judged, and a warning says why (named alike: no warning, a figure)."""
+    _, fit, test = _experiment("ur5")
+    for held, named in ((test, True), (replace(test, point_names=("a", "b")), False)):
+        cal = pincal.calibrate(_robot("ur5"), fit, point_distances=DISTANCES, test=held)
+        assert cal.test_after is not None
+        assert (cal.test_after.point_distance_error_mm is not None) == named
+        said = [w for w in report_warnings(cal, fit, held) if "not judged" in w]
+        assert len(said) == int(not named) and all("(a, b)" in w and "0-1" in w for w in said)
 
 
 def test_a_distance_naming_an_unknown_point_is_refused() -> None:

@@ -48,7 +48,7 @@ if TYPE_CHECKING:  # the same names for type checkers; at run time each loads on
     from .planning import Design, Plan, candidate_poses, plan_poses, write_poses
     from .plausibility import judge_calibration
     from .plots import plot_diagnosis
-    from .report import report_dict, report_json, summary
+    from .report import report_dict, report_json
     from .robots import Robot, load_robot
     from .selection import (
         Selection,
@@ -58,6 +58,7 @@ if TYPE_CHECKING:  # the same names for type checkers; at run time each loads on
         select_parameters,
     )
     from .simulation import TrueRobot, hide_effect, points_truth, random_truth, simulate, simulate_points
+    from .summary_table import summary
     from .tool import ToolCalibration, calibrate_tool, read_flange_poses
     from .tool_plausibility import judge_tool
     from .twists import Twists, chain_twists, gao_k, left_jacobian, nominal_twists, poe_forward
@@ -132,7 +133,7 @@ _LAZY: dict[str, str] = {
     "plot_diagnosis": "plots",
     "report_dict": "report",
     "report_json": "report",
-    "summary": "report",
+    "summary": "summary_table",
     "Robot": "robots",
     "load_robot": "robots",
     "Selection": "selection",

@@ -10,7 +10,8 @@ from ..data import Dataset
 from ..errors import DataError
 from ..files import STDIN, atomic_write_many
 from ..pipeline import calibrate
-from ..report import report_json, summary
+from ..report import report_json
+from ..summary_table import summary
 from ..ur_yaml import DEFAULT_DH, read_ur_kinematics, robot_ur_chain, write_ur_kinematics
 from ..urdf_writer import check_frame_name, corrected_files, sidecar_path
 from .common import (
