@@ -28,6 +28,7 @@ from pincal.cli import main
 from pincal.effects import Extension
 from pincal.models import PlacementsModel
 from pincal.simulation import TrueRobot, hide_effect
+from pincal.summary_table import OFFSETS_CAUSE
 
 NOISE = 3e-5  # 1σ of each measured coordinate [m]
 
@@ -188,3 +189,20 @@ def test_extend_auto_names_nothing_on_clean_data(get_robot: Callable[[str], pinc
     assert len(cal.choice.rounds) == 1 and cal.choice.rounds[0].cause is None
     plain = pincal.calibrate(robot, fit, params="auto")
     np.testing.assert_allclose(cal.theta, plain.theta, atol=1e-12)
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_a_cause_named_with_the_offsets_model_is_said_to_stand_in_for_geometry(
+    get_robot: Callable[[str], pincal.Robot], seed: int
+) -> None:
+    """``--model offsets`` fits no geometry, so the diagnosis may name an effect that soaks up
+    the truth's joint placement errors (seed 2 here: a gear harmonic on a rigid truth); the
+    summary says so whenever a cause is named with that model, and only then."""
+    robot = get_robot("ur5")
+    _, fit, _ = pincal.simulate(robot, n_fit=40, n_test=0, seed=seed)
+    cal = pincal.calibrate(robot, fit, "offsets", params="auto", extension="auto")
+    said = OFFSETS_CAUSE in pincal.summary(cal, fit)
+    assert said == (cal.extension is not None)
+    assert said == (seed == 2)
+    placements = pincal.calibrate(robot, fit, "placements", params="auto", extension="auto")
+    assert placements.extension is None and OFFSETS_CAUSE not in pincal.summary(placements, fit)

@@ -18,6 +18,13 @@ def _spread(cal: Calibration, data: Dataset) -> float:
     return point_spread(cal.model, cal.measurement, cal.theta, data, cal.extension)
 
 
+#: Said of a cause named with ``--model offsets``, which fits no geometry.
+OFFSETS_CAUSE = (
+    "--model offsets fits no geometry: the effect may stand in for joint placement errors; "
+    "see whether --model placements names it too"
+)
+
+
 def _fmt(stats: ErrorStats | None) -> str:
     if stats is None:
         return "-"
@@ -66,6 +73,8 @@ def choice_lines(cal: Calibration, data: Dataset | None = None) -> list[str]:
                 f"cause: {choice.extension.label}, {choice.folds}-fold CV RMS "
                 f"{diag.baseline_cv_rms_mm:.3f} → {diag.extended_cv_rms_mm:.3f} mm (gain {diag.gain:.2f})"
             )
+            if cal.model.kind == "offsets":  # its geometry is the URDF's: an effect may stand in for it
+                lines.append(f"  {OFFSETS_CAUSE}")
         if diag is not None and diag.untried:
             lines.append(f"  {diag.untried}")
         if len(choice.rounds) > 1:
