@@ -191,29 +191,30 @@ def socket_candidates(
 REACH_STARTS = 200
 
 
-def arm_reach(robot: Robot, tool: np.ndarray, samples: int = 20_000) -> tuple[np.ndarray, float, float]:
-    """How far the measured point gets from the first joint's origin.
+def arm_reach(robot: Robot, tool: np.ndarray) -> tuple[np.ndarray, float]:
+    """How far the measured point can get from the first joint's origin.
 
     Args:
         robot: the robot.
         tool: the measured point on the tip (3,) [m].
-        samples: random configurations for the estimate.
 
     Returns:
-        The first joint's origin in the base frame (3,) [m]; the farthest the point gets among
-        ``samples`` random configurations [m]; an upper bound that no configuration passes, the
-        sum of the link lengths, prismatic strokes and the point's distance from the tip [m]
-        (infinite for an unlimited prismatic joint).
+        The first joint's origin in the base frame (3,) [m]; an upper bound that no
+        configuration passes, the sum of the link lengths, prismatic strokes and the point's
+        distance from the tip [m] (infinite for an unlimited prismatic joint).
     """
     chain = Chain.nominal(robot)
     origin = chain.placements[0].translation.copy()
     stroke = np.maximum(np.abs(robot.lower), np.abs(robot.upper))[np.array(robot.prismatic, bool)]
     links = sum(float(np.linalg.norm(c.translation)) for c in chain.placements[1:])
-    bound = links + float(np.sum(stroke)) + float(np.linalg.norm(tool))
-    q = robot.random_configurations(samples, np.random.default_rng(0))
-    frames = forward(chain, q)
-    far = np.linalg.norm(frames.tip_translation + frames.tip_rotation @ tool - origin, axis=1).max()
-    return origin, float(far), bound
+    return origin, links + float(np.sum(stroke)) + float(np.linalg.norm(tool))
+
+
+def farthest(robot: Robot, tool: np.ndarray, origin: np.ndarray, samples: int = 20_000) -> float:
+    """The farthest the measured point ``tool`` (3,) [m] gets from ``origin`` (3,) [m] among
+    ``samples`` random configurations [m] (for the message of :func:`check_sockets`)."""
+    frames = forward(Chain.nominal(robot), robot.random_configurations(samples, np.random.default_rng(0)))
+    return float(np.linalg.norm(frames.tip_translation + frames.tip_rotation @ tool - origin, axis=1).max())
 
 
 def check_sockets(truth: TrueRobot, sockets: np.ndarray, rng: np.random.Generator, margin: float) -> None:
@@ -234,7 +235,7 @@ def check_sockets(truth: TrueRobot, sockets: np.ndarray, rng: np.random.Generato
     from .simulation import _reach  # the simulator's reaching, without its many restarts
 
     sockets = np.atleast_2d(np.asarray(sockets, float))
-    origin, far, bound = arm_reach(truth.robot, truth.tool.translation)
+    origin, bound = arm_reach(truth.robot, truth.tool.translation)
     distance = np.linalg.norm(sockets - origin, axis=1)
     out = distance > bound
     inside = np.flatnonzero(~out)
@@ -251,6 +252,7 @@ def check_sockets(truth: TrueRobot, sockets: np.ndarray, rng: np.random.Generato
         + ("" if distance[k] > bound else f" but none of {REACH_STARTS} inverse-kinematics starts reached it")
         for k in np.flatnonzero(out)
     )
+    far = farthest(truth.robot, truth.tool.translation, origin)
     raise DataError(
         f"--sockets out of the arm's reach: the measured point gets at most about {far:.3g} m from "
         f"the first joint's origin ({xyz(origin)}), and {named}: check the coordinates and --units"

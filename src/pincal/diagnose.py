@@ -302,9 +302,8 @@ def diagnose(
     screens.sort(key=lambda item: item[1].cv_rms_mm)
     options["partial"] = True
     finalists: list[Candidate] = []
-    n_final = min(FINALISTS, len(screens))
+    n_final, base_rms = min(FINALISTS, len(screens)), base_cv.after.rms_mm
     if quick:
-        base_rms = base_cv.after.rms_mm
         n_final = sum(base_rms / s.cv_rms_mm >= QUICK_GAIN for _, s in screens[:n_final])
     for k, (ext, _) in enumerate(screens[:n_final]):
         full = calibrate(robot, data, model, measure, extension=ext, **options)
@@ -322,7 +321,6 @@ def diagnose(
         for ext, s in screens[n_final:]
     ]
     judged = finalists + screened
-    base_rms = base_cv.after.rms_mm
     cause = None
     if finalists:
         best = finalists[0]

@@ -26,7 +26,7 @@ poses is left out (:func:`safe_poses`) is made, with a warning.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -217,7 +217,7 @@ def plan_poses(
     info = Information(
         robot, model, measure, cand, tools, ext, noise, rot_noise, rotation_weight, labels, point_distances
     )
-    warnings, drawn = _check_equations(measure, n_poses, int(info.free.sum())), len(cand)
+    warnings, drawn = _check_equations(measure, n_poses, int(info.free.sum())), len(cand)  # before moves
     weights = info.task_weights(np.atleast_2d(task), tools)
     rows, priors = info.candidate_rows, info.priors
     chosen = exchange(criterion, rows, len(cand), greedy(rows, len(cand), n_poses, priors), priors, weights)
@@ -226,8 +226,8 @@ def plan_poses(
     at = (None, None) if labels is None else (labels[chosen], labels[:n_poses])
     w = weights[info.best]  # the predictions' hypothesis, whose weights are already made
     planned, random = _design(info, cand[chosen], at[0], w), _design(info, cand[:n_poses], at[1], w)
-    plan = Plan(robot, model, measure, criterion, names, units, cand, np.array(chosen), planned, random)
-    return replace(plan, sockets=at[0], drawn=drawn, warnings=warnings)
+    what = (robot, model, measure, criterion, names, units, cand, np.array(chosen), planned, random)
+    return Plan(*what, sockets=at[0], drawn=drawn, warnings=warnings)
 
 
 @dataclass(frozen=True)
