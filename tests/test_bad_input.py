@@ -351,13 +351,14 @@ def test_too_few_poses_for_the_folds_count_all_the_poses(
     the poses, more than given (not the fold's, fewer than given), and that many run."""
     given = 12
     few = _write(tmp_path / "few.csv", keep_rows(given)(list(sim.lines)))
-    line = _assert_refused(capfd, tmp_path, ["diagnose", "ur5", few], "measure at least", "--folds")
+    every = ["--params", "all"]  # the full geometry: with 'auto' (the default) 12 poses can do
+    line = _assert_refused(capfd, tmp_path, ["diagnose", "ur5", few, *every], "measure at least", "--folds")
     match = re.search(r"measure at least (\d+) poses", line)
     assert match is not None, line
     n = int(match.group(1))
     assert given < n <= N_FIT
     enough = _write(tmp_path / "enough.csv", keep_rows(n)(list(sim.lines)))
-    run = _run(capfd, "diagnose", "ur5", enough)
+    run = _run(capfd, "diagnose", "ur5", enough, *every)
     assert run.code == 0, run.err
 
 

@@ -18,6 +18,7 @@ from .models import Model
 from .robots import Robot
 
 if TYPE_CHECKING:
+    from .balance import Balance
     from .choice import ModelChoice
 
 
@@ -47,6 +48,8 @@ class Calibration:
         excluded: outlier poses left out of the fit, as (row number, residual [mm]) pairs.
         choice: how the parameters and the extension were chosen (``params="auto"`` or
             ``extension="auto"``), else None.
+        balance: with an extension, how geometry and effect were weighted so that the URDF
+            alone stays the best URDF (:mod:`pincal.balance`), else None.
     """
 
     model: Model
@@ -71,6 +74,7 @@ class Calibration:
     message: str
     excluded: tuple[tuple[int, float], ...] = ()
     choice: ModelChoice | None = None
+    balance: Balance | None = None
 
     @property
     def robot(self) -> Robot:

@@ -80,6 +80,7 @@ class ModelChoice:
         diagnosis: the diagnosis of the round kept (``extension="auto"``), else None.
         rounds: every round of ``extension="auto"``.
         folds: K of the diagnosis' and the nested cross-validation.
+        seed: the seed of their folds.
         nested: the nested cross-validation of the whole procedure, if it ran.
         nested_note: why it did not run, or how it ran.
         skipped: why ``extension="auto"``'s diagnosis did not run (too few poses for its folds).
@@ -93,6 +94,7 @@ class ModelChoice:
     diagnosis: Diagnosis | None = field(default=None, repr=False)
     rounds: tuple[Round, ...] = ()
     folds: int = 5
+    seed: int = 0
     nested: CrossValidation | None = field(default=None, repr=False)
     nested_note: str = "not asked for"
     skipped: str | None = None
@@ -199,7 +201,7 @@ def choose(
     params, sel = _select(setup, wanted, start)
     mode = "auto" if wanted == "auto" else "all" if wanted is None else "given"
     ext_mode = "auto" if extension == "auto" else "none" if extension is None else "given"
-    base = ModelChoice(mode, params, sel, ext_mode, setup.problem.extension, folds=folds)
+    base = ModelChoice(mode, params, sel, ext_mode, setup.problem.extension, folds=folds, seed=seed)
     if extension != "auto":
         return base
     robot, data, model = setup.model.robot, setup.data, setup.model
@@ -223,10 +225,10 @@ def choose(
                 **options,
                 **fit_options,
             )
-        except IdentifiabilityError:  # a fold too small to fit: the geometry alone, said so
+        except IdentifiabilityError as exc:  # a fold too small to fit: the geometry alone, said so
             if rounds:
                 break
-            return replace(base, skipped=f"too few poses for the diagnosis' {folds} folds")
+            return replace(base, skipped=f"too few poses for the diagnosis' {folds} folds ({exc})")
         named = diag.cause.extension if diag.cause else None
         label = named.label if named else None
         with_cause = cause.label if cause else None

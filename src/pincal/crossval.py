@@ -18,6 +18,8 @@ from .calibration import Calibration
 from .data import Dataset
 from .errors import DataError, IdentifiabilityError
 from .evaluation import ErrorStats, pose_errors
+from .folds import fold_indices
+from .folds import held_out_rows as held_out_rows  # where tests and older callers find it
 from .measurements import Problem, all_pairs
 from .models import Model
 from .pipeline import calibrate
@@ -52,29 +54,6 @@ class CrossValidation:
     def gain_vs_urdf(self) -> float:
         """Mean held-out error of the URDF as it is / after calibration."""
         return self.urdf.mean_mm / self.after.mean_mm
-
-
-def fold_indices(n: int, folds: int, seed: int = 0) -> list[np.ndarray]:
-    """Random partition of ``n`` poses into ``folds`` held-out index sets (sorted)."""
-    order = np.random.default_rng(seed).permutation(n)
-    return [np.sort(f) for f in np.array_split(order, folds)]
-
-
-def held_out_rows(problem: Problem, folds: int | None, seed: int) -> list[np.ndarray]:
-    """Residual rows of each held-out group (a pose, or a fold of poses; for distance data, the
-    rows of every pair with a pose in it): linearised cross-validation's groups."""
-    n_poses = len(problem.data)
-    held = [np.array([i]) for i in range(n_poses)] if folds is None else fold_indices(n_poses, folds, seed)
-    if problem.measurement.kind == "distance":  # the pairs the data has (all, Gao's or given)
-        groups = [np.flatnonzero(np.isin(problem.pairs, h).any(axis=1)) for h in held]
-        return [g for g in groups if len(g)]
-    group = np.full(n_poses + 1, -1)  # each pose's group, and last -1: no group
-    for k, h in enumerate(held):
-        group[h] = k
-    of_row = group[problem.row_poses()]  # a known distance's row (pose -1) is in none
-    order = np.argsort(of_row, kind="stable")
-    bounds = np.searchsorted(of_row[order], np.arange(len(held) + 1))
-    return [order[a:b] for a, b in zip(bounds[:-1], bounds[1:])]
 
 
 def held_out_errors(cal: Calibration, data: Dataset, held: np.ndarray) -> list[np.ndarray]:

@@ -26,7 +26,7 @@ from scipy.special import fdtrc
 from .calibration import Calibration
 from .crossval import cross_validate
 from .data import Dataset
-from .effects import Extension, Payload, Stiffness, candidates, compliance_stiffness, massless
+from .effects import Extension, Payload, Stiffness, candidates, compliance_stiffness, implausible, massless
 from .pipeline import calibrate
 from .robots import Robot
 from .screening import Linearised, Screen
@@ -86,11 +86,17 @@ class Candidate:
             return None
         return compliance_stiffness(self.extension, float(self.params[0]), q)
 
+    @property
+    def implausible(self) -> str | None:
+        """Why its identified value cannot be the named effect (None: plausible, or no ``q``)."""
+        return None if self.q is None else implausible(self.extension, self.params, self.q)
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description (with a ``stiffness`` for a joint compliance, given ``q``)."""
         ext = self.extension
         stiffness = self.stiffness()
-        extra = {"stiffness": stiffness.to_dict()} if stiffness is not None else {}
+        extra: dict[str, Any] = {"stiffness": stiffness.to_dict()} if stiffness is not None else {}
+        extra["implausible"] = self.implausible
         return {
             "effect": ext.effect,
             "joint": ext.joint,
@@ -116,6 +122,8 @@ class Diagnosis:
         candidates: every candidate, best first.
         folds: number of folds.
         q: the data's commanded configurations (N, n), to read a compliance as a stiffness.
+        rejected: candidates that paid on held-out poses but whose identified value is
+            implausible for the effect named (:func:`pincal.effects.implausible`), best first.
     """
 
     baseline: Calibration = field(repr=False)
@@ -124,6 +132,7 @@ class Diagnosis:
     candidates: tuple[Candidate, ...]
     folds: int
     q: np.ndarray | None = field(default=None, repr=False, compare=False)
+    rejected: tuple[Candidate, ...] = ()
 
     @property
     def extended(self) -> Calibration:
@@ -163,7 +172,9 @@ class Diagnosis:
                 if self.candidates
                 else "no effect the data can tell from the geometry"
             )
-            return f"no effect beyond the rigid model and noise: cross-validated RMS {b:.3f} mm ({best})"
+            rejected = "".join(f"; {c.extension.label} rejected: {c.implausible}" for c in self.rejected)
+            said = f"no listed effect pays on held-out poses: cross-validated RMS {b:.3f} mm"
+            return f"{said} ({best}){rejected}"
         ext, p = self.cause.extension, self.cause.params
         unit = ext.units[0]
         if ext.effect == "joint_compliance":
@@ -214,6 +225,10 @@ class Diagnosis:
             "selection": f"lowest cross-validated RMS, if gain >= {MIN_GAIN} and F-test p < {ALPHA} / "
             f"{len(self.candidates)} (Bonferroni)",
             "candidates": [c.to_dict() for c in self.candidates],
+            "rejected": [
+                {"effect": c.extension.effect, "joint": c.extension.joint, "why": c.implausible}
+                for c in self.rejected
+            ],
         }
 
 
@@ -287,6 +302,7 @@ def diagnose(
         **options: passed to :func:`pincal.calibrate` (registration, tool, ...).
     """
     options = {k: v for k, v in options.items() if k != "extension"}
+    options["deliver"] = "none"  # a cause is named by the joint fit of geometry and effect
     pool = candidates(robot, payload) if effects is None else effects
     base = calibrate(robot, data, model, measure, **options)  # first: says if the data falls short
     base_cv = cross_validate(robot, data, model, measure, folds, seed, **options)
@@ -321,12 +337,10 @@ def diagnose(
         for ext, s in screens[n_final:]
     ]
     judged = finalists + screened
-    cause = None
-    if finalists:
-        best = finalists[0]
-        if base_rms / best.cv_rms_mm >= MIN_GAIN and best.p_value < ALPHA / len(judged):
-            cause = best
-    return Diagnosis(base, base_rms, cause, tuple(judged), folds, data.q)
+    paying = [c for c in finalists if base_rms / c.cv_rms_mm >= MIN_GAIN and c.p_value < ALPHA / len(judged)]
+    rejected = tuple(c for c in paying if c.implausible is not None)
+    cause = next((c for c in paying if c.implausible is None), None)
+    return Diagnosis(base, base_rms, cause, tuple(judged), folds, data.q, rejected)
 
 
 def extended_calibration(diagnosis: Diagnosis) -> Calibration:

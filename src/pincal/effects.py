@@ -48,6 +48,14 @@ EFFECTS = ("joint_compliance", "gear_harmonic", "encoder_scale", "backlash")
 PLAUSIBLE_DEFLECTION = (1e-5, 2e-2)
 #: The same for a prismatic joint [m].
 PLAUSIBLE_DEFLECTION_PRISMATIC = (1e-6, 1e-3)
+#: The least stiffness a real joint has [N·m/rad; N/m for a prismatic joint]: the smallest
+#: harmonic drives are stiffer than 100 N·m/rad, hobby servos about 20; below it, an error that
+#: follows the load is something else (a bent tool on an unloaded wrist, wrong inertias).
+LEAST_STIFFNESS = (20.0, 2e4)
+#: The largest joint error an effect other than compliance plausibly makes over the data [rad;
+#: m for a prismatic joint]: gear transmission errors, backlash and encoder scale errors of
+#: working arms stay below about 1 degree (harmonic drives: arc-minutes).
+PLAUSIBLE_JOINT_ERROR = (2e-2, 2e-3)
 _SHORT = {"joint_compliance": "compliance", "encoder_scale": "scale", "backlash": "backlash"}
 
 
@@ -276,7 +284,8 @@ def compliance_stiffness(extension: Extension, coefficient: float, q: np.ndarray
     deflection = abs(c) * torque
     lo, hi = PLAUSIBLE_DEFLECTION_PRISMATIC if prismatic else PLAUSIBLE_DEFLECTION
     sags = c < 0
-    plausible = sags and lo <= deflection <= hi
+    stiff = k >= LEAST_STIFFNESS[1 if prismatic else 0]
+    plausible = sags and stiff and lo <= deflection <= hi
     # Deflections in mrad (or mm), torques in N·m (or N).
     unit_k, unit_d, unit_t = ("N/m", "mm", "N") if prismatic else ("N·m/rad", "mrad", "N·m")
     shown = f"{_short(deflection * 1e3)} {unit_d}"
@@ -288,6 +297,12 @@ def compliance_stiffness(extension: Extension, coefficient: float, q: np.ndarray
         verdict = (
             f"implausible as a stiffness: the joint would rise against its load (K = {k:.3g} {unit_k}"
             " < 0); an error that follows the load, not an elasticity"
+        )
+    elif not stiff and deflection <= hi:
+        verdict = (
+            f"implausible as a stiffness: K = {k:.3g} {unit_k} is below any real joint's "
+            f"({LEAST_STIFFNESS[1 if prismatic else 0]:g} {unit_k}); an error that follows the load "
+            "(a bent tool, wrong inertias), not an elasticity"
         )
     elif plausible:
         verdict = (
@@ -306,3 +321,22 @@ def compliance_stiffness(extension: Extension, coefficient: float, q: np.ndarray
 def _short(x: float) -> str:
     """Two significant digits, without an exponent up to 10⁵."""
     return f"{x:.2g}" if x < 100 or x >= 1e5 else f"{x:.0f}"
+
+
+def implausible(extension: Extension, params: np.ndarray, q: np.ndarray) -> str | None:
+    """Why an identified effect cannot be what it is named (None: plausible) over the commanded
+    configurations ``q`` (N, n): a compliance must read as a stiffness (:func:`compliance_stiffness`),
+    any other effect must move its joint by less than :data:`PLAUSIBLE_JOINT_ERROR`."""
+    if extension.effect == "joint_compliance":
+        stiffness = compliance_stiffness(extension, float(params[0]), q)
+        return None if stiffness.plausible else stiffness.verdict
+    prismatic = bool(extension.robot.prismatic[extension.index])
+    largest = float(np.abs(extension.regressors(q) @ np.asarray(params, float)).max()) if len(q) else 0.0
+    bound, unit = PLAUSIBLE_JOINT_ERROR[1 if prismatic else 0], "mm" if prismatic else "mrad"
+    if largest <= bound:
+        return None
+    return (
+        f"implausible as {extension.effect.replace('_', ' ')}: it moves {extension.joint} by up to "
+        f"{largest * 1e3:.3g} {unit} (a working arm's: below {bound * 1e3:g} {unit}); "
+        "an error of another kind follows this variable"
+    )

@@ -10,13 +10,15 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pinocchio as pin
 
+from .balance import balanced_fit, choose_weight
 from .calibration import Calibration
 from .data import Dataset
+from .delivery import effect_on_top, settled
 from .effects import Extension, Payload
 from .errors import DataError
 from .fixed_points import PointDistance
@@ -27,6 +29,12 @@ from .options import LOSSES
 from .robots import Robot
 from .solver import Setup, assess, identifiable_set, register, screen_outliers, set_up, solve
 from .threads import limited
+
+if TYPE_CHECKING:
+    from .choice import ModelChoice
+
+#: How geometry and an effect share the fit (see :func:`calibrate`'s ``deliver``).
+DELIVERIES = ("balanced", "joint", "none")
 
 Fit = tuple[np.ndarray, np.ndarray, Identifiability, Any]
 
@@ -99,17 +107,21 @@ def calibrate(
     instrument_T_base: pin.SE3 | None = None,
     tool: pin.SE3 | np.ndarray | None = None,
     rotation_weight: float = ROTATION_WEIGHT,
-    pairs: str | np.ndarray = "all", point_distances: tuple[PointDistance, ...] = (),  # fmt: skip
+    pairs: str | np.ndarray = "all",
+    point_distances: tuple[PointDistance, ...] = (),  # fmt: skip
     loss: str = "linear",
-    f_scale: float = 1e-4, rcond: float = RCOND,  # fmt: skip
+    f_scale: float = 1e-4,
+    rcond: float = RCOND,  # fmt: skip
     extension: Extension | str | None = None,
     params: Sequence[str] | str | None = None,
     outliers: float | None = None,
     partial: bool = False,
     payload: Payload | None = None,
-    folds: int = 5, seed: int = 0,  # fmt: skip
+    folds: int = 5,
+    seed: int = 0,  # fmt: skip
     nested: bool | None = False,
     progress: Callable[[int, int, str], None] | None = None,
+    deliver: str = "balanced",
 ) -> Calibration:
     """Identify a kinematic model from measurements.
 
@@ -136,21 +148,30 @@ def calibrate(
         folds, seed: K and seed of the cross-validation of ``extension="auto"`` and ``nested``.
         nested: with ``"auto"``, judge the whole procedure by K-fold cross-validation (choice
             and fit re-run without each fold): True, False, or None "when cheap" (``nested_policy``).
+        deliver: with an extension, how geometry and effect share the fit
+            (:data:`DELIVERIES`): ``balanced`` (the URDF alone stays the best URDF, the sidecar's
+            effect completes it, :mod:`pincal.balance`); ``joint`` (fitted together: best with
+            the sidecar, the URDF alone worse); ``none`` (joint, and the effect's gravity torques
+            stay the nominal URDF's: the diagnosis' inner fits, which write nothing).
 
     Raises:
         DataError, IdentifiabilityError: unusable input (names, data), too little information.
     """
     if loss not in LOSSES:
         raise DataError(f"unknown loss {loss!r}: choose one of {', '.join(LOSSES)}")
+    if deliver not in DELIVERIES:
+        raise DataError(f"unknown deliver={deliver!r}: choose one of {', '.join(DELIVERIES)}")
     wanted, ext = parse_params(params), parse_extension(robot, extension, payload)
     options: dict[str, Any] = dict(instrument_T_base=instrument_T_base, tool=tool, pairs=pairs)
     options.update(rotation_weight=rotation_weight, point_distances=tuple(point_distances))
     fit_options: dict[str, Any] = dict(partial=partial, loss=loss, f_scale=f_scale, rcond=rcond)
     call = dict(options, **fit_options, params=params, extension=extension, payload=payload)
+    call["deliver"] = deliver
     given = ext if isinstance(ext, Extension) else None
     setup = set_up(robot, data, model, measure, extension=given, **options)
     nominal, every = _checked(setup, wanted, fit_options)  # for "auto": refuse what "all" refuses
     from .choice import choose  # here: choice runs diagnose, which calls this function
+
     choice = choose(setup, wanted, ext, folds=folds, seed=seed, payload=payload, options=options,
                     fit_options=fit_options, progress=progress,
                     start=nominal if given is None else None)  # fmt: skip
@@ -162,13 +183,83 @@ def calibrate(
         fit_options["partial"], wanted = partial or checked, choice.params
     theta, nominal, ident, result = fit(setup, wanted, nominal=nominal, every=every, **fit_options)
     bad, scores = screen_outliers(setup, theta, ident.identifiable, outliers or 0.0, f_scale)
+    if bad.size and choice.diagnosis is not None and choice.diagnosis.candidates:
+        screen = {**fit_options, "threshold": outliers or 0.0}
+        bad = _outliers_for_both(setup, choice, bad, wanted, options, screen)
     if bad.size:  # leave them out and start again: the choice too is made on the poses kept
         rest = dict(test=test, folds=folds, seed=seed, nested=nested, progress=progress)
         return _without(robot, data, model, measure, bad, scores, {**call, **rest})
     if nested is not False:
         judge = _judge(robot, data, model, measure, folds, seed, {**call, "outliers": outliers})
         choice = choice.with_nested(judge, nested is True, len(data))
-    return replace(assess(setup, theta, nominal, ident, result, test), choice=choice)
+    if setup.problem.extension is None or deliver == "none":
+        return replace(assess(setup, theta, nominal, ident, result, test), choice=choice)
+    if deliver == "joint":
+        return settled(replace(assess(setup, theta, nominal, ident, result, test), choice=choice), data, test)
+    geometry = set_up(robot, data, model, measure, **options)
+    return _balanced(setup, geometry, _geometric_params(geometry, choice, wanted), choice, test, fit_options)
+
+
+def _balanced(
+    setup: Setup,
+    geometry: Setup,
+    kept: tuple[str, ...] | None,
+    choice: ModelChoice,
+    test: Dataset | None,
+    fit_options: dict[str, Any],
+) -> Calibration:
+    """Geometry and effect weighted so that the URDF alone stays the best URDF
+    (:mod:`pincal.balance`), on the parameters chosen for the geometry alone (``kept``): at the
+    weight's limit the URDF is the geometric fit, and the effect is fitted on top of it."""
+    data, folds, seed = setup.data, choice.folds, choice.seed
+    theta, nominal, ident, result = fit(setup, kept, **fit_options)
+    balance = choose_weight(setup, theta, ident.identifiable, folds, seed)
+    if np.isfinite(balance.weight):
+        theta = balanced_fit(setup, theta, ident.identifiable, balance.weight)
+        cal = settled(replace(assess(setup, theta, nominal, ident, result, test), choice=choice), data, test)
+        return replace(cal, balance=balance)
+    g_theta, g_nominal, g_ident, g_result = fit(geometry, kept, **fit_options)
+    alone = replace(assess(geometry, g_theta, g_nominal, g_ident, g_result, test), choice=choice)
+    assert setup.problem.extension is not None
+    return replace(effect_on_top(alone, setup.problem.extension, data, test), balance=balance)
+
+
+def _outliers_for_both(
+    setup: Setup,
+    choice: ModelChoice,
+    bad: np.ndarray,
+    wanted: Any,
+    options: dict[str, Any],
+    screen: dict[str, Any],
+) -> np.ndarray:
+    """Of the poses ``bad`` the fit flags, those the diagnosis' best candidate cannot explain
+    either: a pose that is an outlier only for the rigid model may carry a real effect (backlash,
+    a nonlinear stiffness), and is kept. ``options``, ``screen``: the set-up and fit options (with
+    the outlier threshold, ``threshold``)."""
+    assert choice.diagnosis is not None
+    best = choice.diagnosis.candidates[0].extension
+    if setup.problem.extension is not None and best.label == setup.problem.extension.label:
+        return bad
+    problem = setup.problem
+    robot, kind = problem.model.robot, problem.measurement.kind
+    other = set_up(robot, problem.data, problem.model, kind, extension=best, **options)
+    params = choice.params if wanted == "auto" else wanted
+    fit_options = {k: v for k, v in screen.items() if k != "threshold"}
+    theta, _, ident, _ = fit(other, params, **{**fit_options, "partial": True})
+    again, _ = screen_outliers(other, theta, ident.identifiable, screen["threshold"], screen["f_scale"])
+    return np.intersect1d(bad, again)
+
+
+def _geometric_params(geometry: Setup, choice: ModelChoice, wanted: Any) -> tuple[str, ...] | None:
+    """The parameters of the geometry alone: those chosen without a cause (the first round of
+    ``extension="auto"``; chosen again for ``params="auto"`` with a given extension)."""
+    if choice.rounds:
+        return choice.rounds[0].params
+    if choice.params_mode == "auto":
+        from .selection import select_on  # selection cross-validates with this module's calibrate
+
+        return select_on(geometry).params
+    return wanted if isinstance(wanted, tuple) else None
 
 
 def _without(

@@ -18,6 +18,7 @@ from .data import Dataset
 from .effects import compliance_stiffness
 from .evaluation import ErrorStats, Misplaced, PlacementErrors, misplaced_rows, placement_errors
 from .models import PoeModel
+from .outcome import Outcome
 
 _TO_DISPLAY = {"m": (1e3, "mm"), "rad": (1e3, "mrad")}
 
@@ -69,16 +70,24 @@ def extension_dict(cal: Calibration, data: Dataset | None = None) -> dict[str, A
     return out
 
 
-def report_dict(cal: Calibration, data: Dataset | None = None, test: Dataset | None = None) -> dict[str, Any]:
+def report_dict(
+    cal: Calibration, data: Dataset | None = None, test: Dataset | None = None, outcome: Outcome | None = None
+) -> dict[str, Any]:
     """The report of ``contracts.md`` (and more); ``data``, ``test``: the fitted and held-out
-    poses, for the stiffness a compliance implies and the warnings."""
+    poses, for the stiffness a compliance implies and the warnings; ``outcome``: the exported
+    files' errors and the residual verdict (:func:`pincal.outcome.outcome`)."""
+    exported = outcome.exported if outcome is not None else None
 
-    def pair(before: ErrorStats | None, after: ErrorStats | None, urdf: ErrorStats | None) -> Any:
+    def pair(
+        before: ErrorStats | None, after: ErrorStats | None, urdf: ErrorStats | None, alone: ErrorStats | None
+    ) -> Any:
         if before is None or after is None:
             return None
         out = {"before": before.to_dict(), "after": after.to_dict()}
         if urdf is not None:
             out["urdf"] = urdf.to_dict()
+        if alone is not None:
+            out["exported"] = alone.to_dict()
         return out
 
     ident, found = cal.identifiability, _findings(cal, data)
@@ -110,8 +119,13 @@ def report_dict(cal: Calibration, data: Dataset | None = None, test: Dataset | N
         else None,
         "before_means": "nominal kinematics with the instrument registration and tool fitted",
         "urdf_means": "the URDF as it is: nominal tool, only the instrument registration fitted",
-        "train": pair(cal.train_before, cal.train_after, cal.train_urdf),
-        "test": pair(cal.test_before, cal.test_after, cal.test_urdf),
+        "exported_means": "the written URDF alone, with the sidecar's registration and tool (as a URDF "
+        "consumer loads it); after: the URDF with the whole sidecar",
+        "train": pair(
+            cal.train_before, cal.train_after, cal.train_urdf, exported.train if exported else None
+        ),
+        "test": pair(cal.test_before, cal.test_after, cal.test_urdf, exported.test if exported else None),
+        "residual": None if outcome is None else outcome.residual.to_dict(),
         "solver": {"jacobian_evaluations": cal.n_evaluations, "message": cal.message},
         "excluded_poses": [{"row": row, "residual_mm": size} for row, size in cal.excluded],
         "parameters": parameter_rows(cal),
@@ -124,7 +138,11 @@ def report_dict(cal: Calibration, data: Dataset | None = None, test: Dataset | N
 
 
 def report_json(
-    cal: Calibration, data: Dataset | None = None, test: Dataset | None = None, **extra: Any
+    cal: Calibration,
+    data: Dataset | None = None,
+    test: Dataset | None = None,
+    outcome: Outcome | None = None,
+    **extra: Any,
 ) -> str:
     """The report as JSON text (no NaN or infinity: those become null), with ``extra`` keys."""
 
@@ -137,7 +155,7 @@ def report_json(
             return [clean(v) for v in obj]
         return obj
 
-    return json.dumps(clean({**report_dict(cal, data, test), **extra}), indent=2) + "\n"
+    return json.dumps(clean({**report_dict(cal, data, test, outcome), **extra}), indent=2) + "\n"
 
 
 #: What the report says of fitted fixed-point data: each placement's errors, the misplaced rows.

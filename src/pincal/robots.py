@@ -74,6 +74,8 @@ class Robot:
         upper: upper joint limits [rad or m] (+inf for continuous joints).
         urdf_joints: every joint name of the URDF (including those locked or off the chain).
         urdf_text: the URDF the model was built from (a xacro's output, a kinematics YAML applied).
+        lent_text: that URDF with the masses lent by ``inertias`` (empty when none were lent):
+            what a corrected URDF is written from, so that its gravity torques are the fit's.
     """
 
     name: str
@@ -87,6 +89,7 @@ class Robot:
     upper: np.ndarray
     urdf_joints: tuple[str, ...] = ()
     urdf_text: str = field(default="", repr=False)
+    lent_text: str = field(default="", repr=False)
 
     @property
     def n_joints(self) -> int:
@@ -257,7 +260,8 @@ def load_robot(
         if not path.is_file():
             raise RobotError(f"URDF file not found: {path}")
     text = robot_description(path, xacro_args, package_paths, kinematics)
-    full, mimic = _parse_urdf(path, text if inertias is None else _with_inertias(text, inertias))
+    lent = "" if inertias is None else _with_inertias(text, inertias)
+    full, mimic = _parse_urdf(path, lent or text)
     if tip is None:
         tip = _deepest_body(full)
     tip_id = _find_frame(full, tip)
@@ -291,6 +295,7 @@ def load_robot(
         upper=upper,
         urdf_joints=tuple(full.names[1:]),
         urdf_text=text,
+        lent_text=lent,
     )
 
 

@@ -20,9 +20,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .calibration import Calibration
-from .crossval import fold_indices
 from .data import Dataset
 from .effects import Extension
+from .folds import fold_indices
 from .identifiability import RCOND
 from .measurements import Problem
 

@@ -27,11 +27,12 @@ from typing import Any
 
 import numpy as np
 
-from .crossval import cross_validate, held_out_rows
+from .crossval import cross_validate
 from .data import Dataset
 from .effects import Extension
 from .evaluation import ErrorStats
 from .fixed_points import blind_jacobian
+from .folds import held_out_rows
 from .identifiability import RCOND
 from .robots import Robot
 from .solver import SETUP_KEYS, Setup, register, set_up

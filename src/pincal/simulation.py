@@ -137,10 +137,13 @@ def hide_effect(
 ) -> TrueRobot:
     """The same truth with an effect whose tip displacement over poses ``q`` has RMS ``rms`` [m].
 
-    The direction of the effect's parameters (for a harmonic, its phase) is drawn with ``seed``.
+    The direction of the effect's parameters (for a harmonic, its phase) is drawn with ``seed``;
+    a compliance always sags (``c < 0``, as a real joint does).
     """
     rng = np.random.default_rng(seed)
     direction = _unit(rng.normal(size=extension.n_params))
+    if extension.effect == "joint_compliance":  # a joint sags under its load (c < 0), never rises
+        direction = -np.abs(direction)
     direction *= 1e-5 / np.abs(extension.regressors(q) @ direction).max()  # a small probe, 1e-5 rad
     base = truth.target(q)[0]
     moved = replace(truth, extension=extension, effect=direction).target(q)[0]

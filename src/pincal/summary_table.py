@@ -7,6 +7,7 @@ from __future__ import annotations
 from .calibration import Calibration
 from .data import Dataset
 from .evaluation import ErrorStats, point_spread
+from .outcome import Outcome
 from .report import _findings, _names, extension_dict, report_warnings
 
 #: Fixed points within this distance of each other are one placement of a fixture [m].
@@ -78,8 +79,9 @@ def choice_lines(cal: Calibration, data: Dataset | None = None) -> list[str]:
         if diag is not None and diag.untried:
             lines.append(f"  {diag.untried}")
         if len(choice.rounds) > 1:
-            each = (f"{r.cause or 'none'} on {len(r.params or ()) or 'all'} parameters"
-                    for r in choice.rounds)
+            each = (
+                f"{r.cause or 'none'} on {len(r.params or ()) or 'all'} parameters" for r in choice.rounds
+            )
             scores = (f" ({r.extended_cv_rms_mm:.3f} mm)" for r in choice.rounds)
             lines.append("  rounds: " + "; ".join(a + b for a, b in zip(each, scores)))
     ext = extension_dict(cal, data)
@@ -96,8 +98,27 @@ def choice_lines(cal: Calibration, data: Dataset | None = None) -> list[str]:
     return lines
 
 
-def summary(cal: Calibration, data: Dataset | None = None, test: Dataset | None = None) -> str:
-    """A readable before/after table, the identifiability summary and what was chosen."""
+def _exported_rows(cal: Calibration, outcome: Outcome | None) -> list[str]:
+    """The URDF alone's errors, as written and loaded back, where they differ from ``after``."""
+    if outcome is None:
+        return []
+    ex, rows = outcome.exported, []
+    for label, alone, after in (("fitted", ex.train, cal.train_after), ("held out", ex.test, cal.test_after)):
+        if alone is not None and after is not None and abs(alone.rms_mm - after.rms_mm) > 1e-6:
+            rows.append(f"  {label:10s} {'':>21s} {'URDF alone:':>21s} {_fmt(alone)}")
+    if rows:
+        rows.append(
+            "  (URDF alone: the written URDF with the sidecar's registration and tool, without its "
+            f"{cal.extension.label if cal.extension else 'extension'})"
+        )
+    return rows
+
+
+def summary(
+    cal: Calibration, data: Dataset | None = None, test: Dataset | None = None, outcome: Outcome | None = None
+) -> str:
+    """A readable before/after table, the identifiability summary and what was chosen; with
+    ``outcome``, the exported URDF alone's row where it differs from ``after``, and what remains."""
     ident = cal.identifiability
     kind = cal.measurement.kind
     names = {"distance": "abs. distance error over pairs", "points": "fixed points"}
@@ -114,6 +135,7 @@ def summary(cal: Calibration, data: Dataset | None = None, test: Dataset | None 
     ]
     if cal.test_after is not None:
         lines.append(_row("held out", cal.test_urdf, cal.test_before, cal.test_after))
+    lines += _exported_rows(cal, outcome)
     fitted = "tool and points" if kind == "points" else "registration and tool"
     lines.append(f"  (before: nominal kinematics, {fitted} fitted; URDF as is: nominal tool)")
     if ident.gauges:
@@ -145,4 +167,8 @@ def summary(cal: Calibration, data: Dataset | None = None, test: Dataset | None 
             "all the others)"
         )
     lines += choice_lines(cal, data)
+    if outcome is not None:
+        lines.append(f"residual: {outcome.residual.sentence()}; {outcome.residual.how}")
+        caveat = outcome.caveat()
+        lines += [f"note: {caveat}"] if caveat else []
     return "\n".join(lines + [f"warning: {w}" for w in report_warnings(cal, data, test, found)])

@@ -93,8 +93,10 @@ def urdf_chain(cal: Calibration) -> list[pin.SE3]:
 
 
 def _source(robot: Robot) -> bytes:
-    """The URDF the robot was built from (a xacro's output, a kinematics YAML applied)."""
-    return robot.urdf_text.encode("utf-8") if robot.urdf_text else Path(robot.urdf_path).read_bytes()
+    """The URDF the robot was built from (a xacro's output, a kinematics YAML applied, the masses
+    lent by ``inertias`` written in)."""
+    text = robot.lent_text or robot.urdf_text
+    return text.encode("utf-8") if text else Path(robot.urdf_path).read_bytes()
 
 
 def _read(robot: Robot) -> Any:

@@ -9,6 +9,7 @@ from typing import Any
 from ..data import Dataset
 from ..errors import DataError
 from ..files import STDIN, atomic_write_many
+from ..outcome import Outcome, outcome
 from ..pipeline import calibrate
 from ..report import report_json
 from ..summary_table import summary
@@ -97,11 +98,13 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed,
         nested=NESTED[args.nested],
         progress=progress,
+        deliver="balanced" if args.geometry == "first" else "joint",
         **fit_options(args),
     )
     end_progress(progress)
-    print(summary(cal, data, test))
     verdict = plausible(cal, data, args)
+    result = outcome(cal, data, test, args.noise, args.folds, args.seed)
+    print(summary(cal, data, test, result))
     files: list[tuple[str | Path, str | bytes]] = []
     extra: dict[str, Any] = {"plausibility": verdict.to_dict()}
     if ur_yaml_output(args):
@@ -113,11 +116,26 @@ def run(args: argparse.Namespace) -> int:
         files = list(corrected_files(cal, args.output, args.add_frame))
         extra.update(urdf=str(files[0][0]), sidecar=str(files[1][0]))
     if args.report is not None:
-        files.append((args.report, report_json(cal, data, test, **extra)))
+        files.append((args.report, report_json(cal, data, test, result, **extra)))
     atomic_write_many(files)  # every output or none
     if "urdf" in extra:
         print(f"corrected URDF written to {extra['urdf']}; registration and tool (not in a URDF) to ", end="")
         print(extra["sidecar"])
     if args.report is not None:
         print(f"report written to {args.report}")
+    print(result.verdict_line(str(args.output) if args.output else None, verdict_warnings(cal, result)))
     return 0
+
+
+def verdict_warnings(cal: Any, result: Outcome) -> tuple[str, ...]:
+    """What the user must act on, for the verdict line."""
+    out = []
+    nested = cal.choice.nested if cal.choice is not None else None
+    if nested is not None and nested.after.rms_mm > nested.urdf.rms_mm * 1.01:
+        out.append(
+            f"warning: the nested cross-validation is worse than the URDF as is "
+            f"({nested.after.rms_mm:.3g} against {nested.urdf.rms_mm:.3g} mm): measure more varied poses"
+        )
+    if result.residual.verdict == "undetermined":
+        out.append("give --noise MM to judge what remains")
+    return tuple(out)

@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import argparse
 import json
+from typing import Any
 
 import numpy as np
 
 from ..data import atomic_write
-from ..errors import DataError
+from ..errors import DataError, IdentifiabilityError
+from ..outcome import outcome
 from ..pipeline import calibrate
-from ..selection import select_parameters
 from .common import (
     chain,
     check_applicable,
@@ -25,8 +26,8 @@ from .common import (
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run the command; 0 on success."""
-    from ..diagnose import diagnose
+    """Run the command; 0 on success: the diagnosis of ``pincal calibrate --extend auto`` (one
+    shared pipeline, so that both name the same cause), its candidates, and what remains."""
     from ..plots import plot_diagnosis
 
     if args.plots is not None and not args.plots.is_dir():
@@ -35,32 +36,32 @@ def run(args: argparse.Namespace) -> int:
     robot = chain(args)
     data = load_data(args.data, robot, args)
     check_applicable(args, data)
-    if args.outliers:
-        options = fit_options(args)
-        screened = calibrate(robot, data, args.model, args.measure, outliers=args.outliers, **options)
-        if screened.excluded:
-            rows = [row for row, _ in screened.excluded]
-            data = data.subset(np.flatnonzero(~np.isin(data.row_numbers, rows)))
-            named = ", ".join(data.row_name(row) for row in rows)
-            print(f"outliers left out (residual far outside the others'): {named}")
-
-    params = None if args.params == "all" else args.params
-    if params == "auto":
-        params = select_parameters(robot, data, args.model, args.measure, **fit_options(args)).params
     progress = progress_line("candidates")
-    result = diagnose(
+    cal = calibrate(
         robot,
         data,
         args.model,
         args.measure,
+        params=args.params,
+        extension="auto",
+        payload=args.payload,
+        outliers=args.outliers or None,
         folds=args.folds,
         seed=args.seed,
-        payload=args.payload,
+        nested=False,
         progress=progress,
-        params=None if params is None else list(params),
         **fit_options(args),
     )
     end_progress(progress)
+    if cal.excluded:
+        named = ", ".join(data.row_name(row) for row, _ in cal.excluded)
+        print(f"outliers left out (residual far outside the others'): {named}")
+        rows = [row for row, _ in cal.excluded]
+        data = data.subset(np.flatnonzero(~np.isin(data.row_numbers, rows)))
+    choice = cal.choice
+    result = choice.diagnosis if choice is not None else None
+    if result is None:
+        raise IdentifiabilityError(f"the diagnosis did not run: {choice.skipped if choice else 'no choice'}")
     print(
         f"baseline {args.model}: cross-validated RMS {result.baseline_cv_rms_mm:.4f} mm ({args.folds} folds)"
     )
@@ -68,13 +69,30 @@ def run(args: argparse.Namespace) -> int:
         print(f"  {cand.extension.label:42s} CV RMS {cand.cv_rms_mm:.4f} mm  F-test p = {cand.p_value:.2g}")
     print(result.summary())
     verdict = plausible(result.baseline, data, args)
-    if args.plots is not None and result.cause is not None and result.baseline.measurement.kind != "distance":
-        plot = args.plots / f"diagnose_{result.cause.extension.effect}.png"
+    found = outcome(cal, data, None, args.noise, args.folds, args.seed)
+    print(f"residual: {found.residual.sentence()}; {found.residual.how}")
+    if found.caveat():
+        print(f"note: {found.caveat()}")
+    if args.plots is not None and result.baseline.measurement.kind != "distance":
+        name = result.cause.extension.effect if result.cause else found.residual.verdict
+        plot = args.plots / f"diagnose_{name}.png"
         check_outputs(args, [plot], {"data file": args.data, "input URDF": urdf_path(args.robot)})
-        path = plot_diagnosis(result, data, plot)
+        path = plot_diagnosis(result, data, plot, found.residual)
         print(f"plot written to {path}")
     if args.json is not None:
-        out = {**result.to_dict(), "plausibility": verdict.to_dict()}
-        atomic_write(args.json, json.dumps(out, indent=2) + "\n")
+        out = {**result.to_dict(), "plausibility": verdict.to_dict(), "residual": found.residual.to_dict()}
+        atomic_write(args.json, json.dumps(_finite(out), indent=2) + "\n")
         print(f"written to {args.json}")
+    print(found.verdict_line())
     return 0
+
+
+def _finite(obj: Any) -> Any:
+    """``obj`` with every non-finite float as None (JSON has no Infinity)."""
+    if isinstance(obj, float) and not np.isfinite(obj):
+        return None
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [_finite(v) for v in obj]
+    return obj

@@ -19,7 +19,7 @@ from ..options import (
     THRESHOLD,
     UNITS,
 )
-from .numeric import count, folds, fraction, height, reach, rotation_weight, seed, sigmas, threads
+from .numeric import count, folds, fraction, height, noise, reach, rotation_weight, seed, sigmas, threads
 from .values import mapping, name_list, parameters, payload, vector3, vectors3
 
 
@@ -53,6 +53,7 @@ def _add_calibrate(sub: Any) -> None:
     cal.add_argument("--holdout", type=fraction, help="fraction of the poses to hold out instead of --test")
     cal.add_argument("--seed", type=seed, default=0, help="seed of the --holdout split")
     cal.add_argument("--report", type=Path, help="write the JSON report here")
+    _add_noise(cal)
     cal.add_argument(
         "-o",
         "--output",
@@ -80,6 +81,14 @@ def _add_calibrate(sub: Any) -> None:
         "'none'; or EFFECT:JOINT",
     )
     cal.add_argument(
+        "--geometry",
+        choices=["first", "joint"],
+        default="first",
+        help="with an effect: 'first' (default) writes the best URDF alone and fits the effect on top of it "
+        "(the sidecar completes it); 'joint' fits geometry and effect together (best with the sidecar, "
+        "physically closest effect; the URDF alone is then worse, and the report says by how much)",
+    )
+    cal.add_argument(
         "--folds", type=folds, default=5, help="folds of --extend auto's and the nested cross-validation"
     )
     cal.add_argument(
@@ -99,15 +108,16 @@ def _add_diagnose(sub: Any) -> None:
     diag = sub.add_parser("diagnose", help="name what the rigid model gets wrong, and the gain")
     _add_data_options(diag)
     diag.add_argument("--json", type=Path, help="write the diagnosis as JSON here")
+    _add_noise(diag)
     diag.add_argument("--plots", type=Path, metavar="DIR", help="write a PNG of the named cause here")
     diag.add_argument("--folds", type=folds, default=5, help="folds of the cross-validation (2 or more)")
     diag.add_argument("--seed", type=seed, default=0, help="seed of the folds")
     diag.add_argument(
         "--params",
         type=parameters,
-        default="all",
+        default="auto",
         metavar="all|auto|NAME,...|@FILE",
-        help="the geometric baseline's parameters: 'all' (default), 'auto' or names",
+        help="the geometric baseline's parameters: 'auto' (default, as pincal calibrate), 'all' or names",
     )
     _add_force(diag)
 
@@ -250,6 +260,16 @@ def _add_robot_options(cmd: argparse.ArgumentParser, flag: str = "ROBOT") -> Non
         metavar="URDF",
         help=f"a URDF or bundled robot whose links lend their masses to {flag}'s links of the same "
         "name that have none (gravity torques: compliance and backlash)",
+    )
+
+
+def _add_noise(cmd: argparse.ArgumentParser) -> None:
+    cmd.add_argument(
+        "--noise",
+        type=noise,
+        metavar="MM",
+        help="the instrument's noise, RMS per axis, in mm whatever the data's units: the residual verdict "
+        "(explained / unexplained) is judged against it (default: estimated from repeated poses, if any)",
     )
 
 
