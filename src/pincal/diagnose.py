@@ -167,14 +167,16 @@ class Diagnosis:
         """What the diagnosis names, with its gain."""
         b, a = self.baseline_cv_rms_mm, self.extended_cv_rms_mm
         if self.cause is None:
+            rejected = "".join(f"; {c.extension.label} rejected: {c.implausible}" for c in self.rejected)
+            if self.rejected:
+                said = f"no plausible listed effect pays on held-out poses: cross-validated RMS {b:.3f} mm"
+                return said + rejected
             best = (
                 f"best candidate {self.candidates[0].extension.label}, not significant"
                 if self.candidates
                 else "no effect the data can tell from the geometry"
             )
-            rejected = "".join(f"; {c.extension.label} rejected: {c.implausible}" for c in self.rejected)
-            said = f"no listed effect pays on held-out poses: cross-validated RMS {b:.3f} mm"
-            return f"{said} ({best}){rejected}"
+            return f"no listed effect pays on held-out poses: cross-validated RMS {b:.3f} mm ({best})"
         ext, p = self.cause.extension, self.cause.params
         unit = ext.units[0]
         if ext.effect == "joint_compliance":
