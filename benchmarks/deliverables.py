@@ -108,7 +108,7 @@ def main(argv: list[str] | None = None) -> None:
         print(judge("tiago_qualisys", robot, train, val, folder))
         for name, loader in (("ur10_camera", load_ur10), ("panda_eye_in_hand", load_panda)):
             robot, data = loader(args.datasets / name)
-            data = Dataset(data.joint_names, data.q, data.points)  # positions: the URDF-alone figure is a distance
+            data = Dataset(data.joint_names, data.q, data.points)  # positions: the figures are distances
             fit, held = data.split(0.3, 0)
             print(judge(name, robot, fit, held, folder))
         robot, data = pincal.load_robot("mrres5"), pincal.gao2013_data()[0]

@@ -87,7 +87,8 @@ def test_lent_masses_are_written_and_reproduce_the_fit(tmp_path: Path) -> None:
 @pytest.mark.parametrize("label", EFFECTS)
 def test_default_urdf_is_as_good_alone_as_the_geometric_fit(get_robot, label: str) -> None:
     """By default the URDF alone is as good on held-out poses as the fit without the effect
-    (within 3 %), and its sidecar improves on it; a joint fit's URDF alone would be 10-25 % worse."""
+    (within 6 %, the held-out set's noise), and its sidecar improves on it; a joint fit's URDF
+    alone is 8-21 % worse."""
     robot = get_robot("ur5")
     data, test = _data(robot, label, 21)
     ext = Extension.parse(robot, label)
@@ -95,7 +96,7 @@ def test_default_urdf_is_as_good_alone_as_the_geometric_fit(get_robot, label: st
     alone = pincal.calibrate(robot, data, test=test, params="all")
     exported = exported_errors(cal, data, test)
     assert exported.test is not None and cal.test_after is not None and alone.test_after is not None
-    assert exported.test.rms_mm <= 1.03 * alone.test_after.rms_mm  # the joint fit's: 10-25 % worse
+    assert exported.test.rms_mm <= 1.06 * alone.test_after.rms_mm  # the joint fit's: 8-21 % worse
     assert abs(exported.full_test.rms_mm - cal.test_after.rms_mm) < 1e-6  # type: ignore[union-attr]
     assert cal.test_after.rms_mm < exported.test.rms_mm
 

@@ -4,20 +4,21 @@ A URDF consumer uses the geometry without the sidecar's effect; ``pincal compens
 A joint fit of geometry and effect is best with the sidecar but leaves a URDF that leans on it
 (its geometry does not absorb what of the effect it could); the geometric fit alone is the best
 URDF but leaves the effect fitted on top of it only what the geometry did not absorb. Between the
-two lies a family of fits, each minimising
+two lies a family of fits, each minimising over the geometry, registration and tool
 
     |r_full(θ)|² + λ · |r_alone(θ)|²
 
-(``r_alone``: the same geometry, registration and tool without the effect). λ = 0 is the joint
-fit, λ → ∞ the geometry first and the effect on top. λ is chosen by K-fold cross-validation of
-the problem linearised at the joint fit: the smallest λ of :data:`WEIGHTS` whose held-out error
-of the URDF alone is no larger than the geometric fit's (λ → ∞), so that the URDF alone is
-no worse than the geometry alone would be (within the cross-validation's noise), and the model
-with the sidecar as good as that allows. On simulated UR5s with one effect of 0.4 mm RMS at the
-tip (compliance, harmonic, scale, backlash; 60 poses, 0.05 mm noise), the URDF alone stays within
-±2 % of the geometric fit on 200 held-out poses, while the model with its sidecar goes from
-0.25-0.34 mm (geometry first) to 0.12-0.26 mm (joint fit: 0.10 mm, but its URDF alone 10-25 %
-worse).
+(``r_alone``: the same geometry, registration and tool without the effect), the effect held at
+its joint fit's value (its physical value: a stiffness, an amplitude, as the diagnosis reads
+it). λ = 0 is the joint fit, λ → ∞ the geometry first and the effect fitted on top. λ is
+chosen by K-fold cross-validation of the problem linearised at the joint fit: the smallest λ
+of :data:`WEIGHTS` whose held-out error of the URDF alone is no larger than the geometric
+fit's (λ → ∞), so that the URDF alone is no worse than the geometry alone would be (within the
+cross-validation's noise), and the model with the sidecar as good as that allows. On simulated
+UR5s with one effect of 0.4 mm RMS at the tip (compliance, harmonic, scale, backlash; 60 poses,
+0.05 mm noise), the URDF alone stays within ±5 % of the geometric fit on 200 held-out poses,
+while the model with its sidecar goes from 0.25-0.34 mm (geometry first) to 0.14-0.26 mm (joint
+fit: 0.10 mm, but its URDF alone 8-21 % worse).
 """
 
 from __future__ import annotations
@@ -104,46 +105,83 @@ class Stacked:
         return np.vstack([self.full.jacobian(theta, cols), self.root * lower])
 
 
-def _cv(
-    full: np.ndarray, alone: np.ndarray, jf: np.ndarray, ja: np.ndarray, folds: list, weight: float
-) -> tuple[float, float]:
-    """Linearised K-fold CV of the λ-weighted fit: held-out mean squares (alone, full) [m²]."""
-    root = np.sqrt(min(weight, LARGE))
-    err_a, err_f = [], []
-    for rows in folds:
-        train = np.ones(len(full), dtype=bool)
-        train[rows] = False
-        lhs = np.vstack([jf[train], root * ja[train]])
-        rhs = np.concatenate([full[train], root * alone[train]])
-        step = -np.linalg.lstsq(lhs, rhs, rcond=1e-12)[0]
-        err_f.append(full[rows] + jf[rows] @ step)
-        err_a.append(alone[rows] + ja[rows] @ step)
-    return float(np.mean(np.concatenate(err_a) ** 2)), float(np.mean(np.concatenate(err_f) ** 2))
+class Delivered:
+    """The delivered fit linearised at θ, for K-fold cross-validation of any residual vectors.
+
+    Unknowns ``free`` (a mask); the effect's are those between the model's and the measurement's.
+    How each fold refits, by the weight λ:
+
+    - 0 (a joint fit): geometry, registration, tool and effect on the rows with the effect;
+    - finite: geometry, registration and tool on those rows and √λ × the rows without the effect,
+      the effect held at its value in θ (the joint fit's: its physical value);
+    - ∞ (geometry first): geometry, registration and tool on the rows without the effect, then the
+      effect on top of them.
+    """
+
+    def __init__(self, problem: Problem, theta: np.ndarray, free: np.ndarray, weight: float) -> None:
+        stacked = Stacked(problem, 1.0)
+        effect = np.zeros(problem.n_params, dtype=bool)
+        effect[stacked.effect] = True
+        n = len(problem.residuals(theta))
+        both = (
+            stacked.jacobian(theta, np.flatnonzero(free & ~effect))
+            if (free & ~effect).any()
+            else np.zeros((2 * n, 0))
+        )
+        self.jf, self.ja = _unit(both[:n]), _unit(both[n:])
+        cols = np.flatnonzero(free & effect)
+        self.effect = _unit(problem.jacobian(theta, cols)) if cols.size else np.zeros((n, 0))
+        self.full, self.alone = problem.residuals(theta), stacked.alone.residuals(stacked._alone(theta))
+        self.weight = weight
+        if weight == 0.0 and self.effect.shape[1]:
+            self.jf = np.hstack([self.jf, self.effect])
+            self.ja = np.hstack([self.ja, np.zeros_like(self.effect)])
+
+    def errors(self, test: np.ndarray, full: np.ndarray, alone: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Held-out rows ``test`` (mask) of the residual columns ``full`` and ``alone`` (rows, M),
+        after the fit of the other rows: (with the effect, without it) [m]."""
+        train = ~test
+        if np.isinf(self.weight):
+            step = np.linalg.lstsq(self.ja[train], alone[train], rcond=1e-12)[0]
+            after = full - self.jf @ step
+            on_top = np.linalg.lstsq(self.effect[train], after[train], rcond=1e-12)[0]
+            return after[test] - self.effect[test] @ on_top, alone[test] - self.ja[test] @ step
+        root = np.sqrt(self.weight)
+        lhs = np.vstack([self.jf[train], root * self.ja[train]])
+        step = np.linalg.lstsq(lhs, np.concatenate([full[train], root * alone[train]]), rcond=1e-12)[0]
+        return full[test] - self.jf[test] @ step, alone[test] - self.ja[test] @ step
+
+
+def _unit(jac: np.ndarray) -> np.ndarray:
+    """Columns scaled to unit norm (the least squares stay well conditioned)."""
+    return jac / np.where((n := np.linalg.norm(jac, axis=0)) > 0, n, 1.0)
 
 
 def choose_weight(setup: Setup, theta: np.ndarray, free: np.ndarray, folds: int, seed: int) -> Balance:
     """λ for the joint fit ``theta`` of ``setup`` (its unknowns ``free``, a mask), by K-fold CV."""
-    full_problem = setup.problem
-    stacked = Stacked(full_problem, 1.0)
-    cols = np.flatnonzero(free)
-    n = len(full_problem.residuals(theta))
-    both = stacked.jacobian(theta, cols)
-    jf, ja = both[:n], both[n:]
-    norms = np.where((s := np.linalg.norm(jf, axis=0) + np.linalg.norm(ja, axis=0)) > 0, s, 1.0)
-    jf, ja = jf / norms, ja / norms
-    r_full, r_alone = full_problem.residuals(theta), stacked.alone.residuals(stacked._alone(theta))
-    groups = held_out_rows(full_problem, min(folds, len(full_problem.data)), seed)
-    scores = [_cv(r_full, r_alone, jf, ja, groups, w) for w in WEIGHTS]
-    reference = scores[-1][0]
-    weight = next(w for w, (alone, _) in zip(WEIGHTS, scores) if alone <= reference * (1 + 1e-9))
-    per = 3 if full_problem.measurement.kind != "distance" else 1
-    to_mm = [np.sqrt(per * s) * 1e3 for s in (a for a, _ in scores)]
-    to_mm_full = [np.sqrt(per * s) * 1e3 for s in (f for _, f in scores)]
-    return Balance(weight, tuple(to_mm), tuple(to_mm_full))
+    problem = setup.problem
+    groups = held_out_rows(problem, min(folds, len(problem.data)), seed)
+    tests = []
+    for rows in groups:
+        test = np.zeros(len(problem.residuals(theta)), dtype=bool)
+        test[rows] = True
+        tests.append(test)
+    per = 1 if problem.measurement.kind == "distance" else 3
+    alone_mm, full_mm = [], []
+    for weight in WEIGHTS:
+        fit = Delivered(problem, theta, free, weight)
+        pairs = [fit.errors(t, fit.full[:, None], fit.alone[:, None]) for t in tests]
+        full_mm.append(float(np.sqrt(per * np.mean(np.concatenate([f for f, _ in pairs]) ** 2))) * 1e3)
+        alone_mm.append(float(np.sqrt(per * np.mean(np.concatenate([a for _, a in pairs]) ** 2))) * 1e3)
+    reference = alone_mm[-1]
+    weight = next(w for w, alone in zip(WEIGHTS, alone_mm) if alone <= reference * (1 + 1e-9))
+    return Balance(weight, tuple(alone_mm), tuple(full_mm))
 
 
 def balanced_fit(setup: Setup, theta: np.ndarray, free: np.ndarray, weight: float) -> np.ndarray:
-    """The λ-weighted fit from ``theta`` over the unknowns ``free``."""
+    """The λ-weighted fit from ``theta`` over the unknowns ``free`` but the effect's, held."""
     stacked = Stacked(setup.problem, weight)
-    fitted, _ = solve(Setup(stacked, setup.scale, setup.tool), theta, free)  # type: ignore[arg-type]
+    geometry = free.copy()
+    geometry[stacked.effect] = False
+    fitted, _ = solve(Setup(stacked, setup.scale, setup.tool), theta, geometry)  # type: ignore[arg-type]
     return fitted

@@ -24,13 +24,13 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
+from scipy.optimize import OptimizeResult
 
 from .calibrated_robot import CalibratedRobot, load_calibration
 from .calibration import Calibration
 from .data import Dataset
 from .effects import Extension
 from .evaluation import ErrorStats, evaluate
-from .files import atomic_write_many
 from .identifiability import Identifiability
 from .measurements import Measurement, Problem
 from .models import make_model
@@ -70,11 +70,18 @@ def effect_on_top(
 
 
 def settled(cal: Calibration, data: Dataset, test: Dataset | None) -> Calibration:
-    """A joint fit of geometry and effect with the effect refitted (geometry held) on the gravity
-    torques of its own corrected URDF, which its sidecar will be evaluated on."""
+    """A fit of geometry and effect assessed again with the effect's gravity torques computed on
+    its own corrected URDF (which its sidecar will be evaluated on); nothing is refitted."""
     if cal.extension is None:
         return cal
-    return _effect_refitted(cal, cal.extension, cal.theta, cal.identifiability, data, test)
+    ext = on_robot(cal.extension, corrected_robot(cal))
+    problem = Problem(cal.model, cal.measurement, data, ext)
+    setup = Setup(problem, natural_scale(problem), cal.urdf_measurement.tool)
+    result = OptimizeResult(njev=cal.n_evaluations, nfev=cal.n_evaluations, message=cal.message)
+    settled_cal = assess(
+        setup, cal.theta, register(setup, with_extension=False), cal.identifiability, result, test
+    )
+    return replace(settled_cal, excluded=cal.excluded, choice=cal.choice, balance=cal.balance)
 
 
 def _effect_refitted(
@@ -142,7 +149,8 @@ def exported_errors(cal: Calibration, data: Dataset, test: Dataset | None = None
     """Write the corrected URDF and its sidecar, load them back, score them (see :class:`Exported`)."""
     with tempfile.TemporaryDirectory(prefix="pincal-") as folder:
         files = corrected_files(cal, Path(folder) / "calibrated.urdf")
-        atomic_write_many(files)
+        for path, text in files:  # a private folder: no other reader, nothing to make atomic
+            Path(path).write_text(text, encoding="utf-8")
         loaded = load_calibration(files[0][0])
         return Exported(
             train=_score(loaded, cal, data, False) or ErrorStats.of(np.zeros(1)),

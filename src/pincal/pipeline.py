@@ -86,6 +86,13 @@ def parse_extension(
     return Extension.parse(robot, extension, payload)
 
 
+def _check_choices(**given: tuple[str, tuple[str, ...]]) -> None:
+    """Refuse an argument whose value is not one of its choices (``name=(value, choices)``)."""
+    for name, (value, choices) in given.items():
+        if value not in choices:
+            raise DataError(f"unknown {name} {value!r}: choose one of {', '.join(choices)}")
+
+
 def _kept_pairs(pairs: str | np.ndarray, n: int, keep: np.ndarray) -> str | np.ndarray:
     """Pose pairs among the kept poses, renumbered (named pairings are rebuilt from the poses)."""
     if isinstance(pairs, str):
@@ -108,17 +115,17 @@ def calibrate(
     tool: pin.SE3 | np.ndarray | None = None,
     rotation_weight: float = ROTATION_WEIGHT,
     pairs: str | np.ndarray = "all",
-    point_distances: tuple[PointDistance, ...] = (),  # fmt: skip
+    point_distances: tuple[PointDistance, ...] = (),
     loss: str = "linear",
     f_scale: float = 1e-4,
-    rcond: float = RCOND,  # fmt: skip
+    rcond: float = RCOND,
     extension: Extension | str | None = None,
     params: Sequence[str] | str | None = None,
     outliers: float | None = None,
     partial: bool = False,
     payload: Payload | None = None,
     folds: int = 5,
-    seed: int = 0,  # fmt: skip
+    seed: int = 0,
     nested: bool | None = False,
     progress: Callable[[int, int, str], None] | None = None,
     deliver: str = "balanced",
@@ -143,45 +150,28 @@ def calibrate(
             the others stay nominal. Extension, registration and tool are always fitted.
         outliers, partial: leave out poses this many robust σ above the others (:mod:`pincal.outliers`);
             fit what the data identifies when varied poses would identify more.
-        payload, progress: a load on the tip, for gravity torques; ``progress(done, total,
-            label)``, called by ``extension="auto"``'s diagnosis.
+        payload, progress: a tip load, for gravity torques; ``progress(done, total, label)``.
         folds, seed: K and seed of the cross-validation of ``extension="auto"`` and ``nested``.
         nested: with ``"auto"``, judge the whole procedure by K-fold cross-validation (choice
             and fit re-run without each fold): True, False, or None "when cheap" (``nested_policy``).
-        deliver: with an extension, how geometry and effect share the fit
-            (:data:`DELIVERIES`): ``balanced`` (the URDF alone stays the best URDF, the sidecar's
-            effect completes it, :mod:`pincal.balance`); ``joint`` (fitted together: best with
-            the sidecar, the URDF alone worse); ``none`` (joint, and the effect's gravity torques
-            stay the nominal URDF's: the diagnosis' inner fits, which write nothing).
+        deliver: with an extension, ``balanced`` (the URDF alone stays the best URDF, the effect
+            completes it: :mod:`pincal.balance`), ``joint`` (fitted together) or ``none`` (joint,
+            gravity on the nominal URDF: the diagnosis' inner fits).
 
     Raises:
         DataError, IdentifiabilityError: unusable input (names, data), too little information.
     """
-    if loss not in LOSSES:
-        raise DataError(f"unknown loss {loss!r}: choose one of {', '.join(LOSSES)}")
-    if deliver not in DELIVERIES:
-        raise DataError(f"unknown deliver={deliver!r}: choose one of {', '.join(DELIVERIES)}")
+    _check_choices(loss=(loss, LOSSES), deliver=(deliver, DELIVERIES))
     wanted, ext = parse_params(params), parse_extension(robot, extension, payload)
     options: dict[str, Any] = dict(instrument_T_base=instrument_T_base, tool=tool, pairs=pairs)
     options.update(rotation_weight=rotation_weight, point_distances=tuple(point_distances))
     fit_options: dict[str, Any] = dict(partial=partial, loss=loss, f_scale=f_scale, rcond=rcond)
-    call = dict(options, **fit_options, params=params, extension=extension, payload=payload)
-    call["deliver"] = deliver
-    given = ext if isinstance(ext, Extension) else None
-    setup = set_up(robot, data, model, measure, extension=given, **options)
-    nominal, every = _checked(setup, wanted, fit_options)  # for "auto": refuse what "all" refuses
-    from .choice import choose  # here: choice runs diagnose, which calls this function
-
-    choice = choose(setup, wanted, ext, folds=folds, seed=seed, payload=payload, options=options,
-                    fit_options=fit_options, progress=progress,
-                    start=nominal if given is None else None)  # fmt: skip
-    if wanted == "auto" or ext == "auto":
-        checked = wanted == "auto"  # every parameter passed the rank check: so does any subset
-        if choice.extension is not None and given is None:
-            setup = set_up(robot, data, model, measure, extension=choice.extension, **options)
-            nominal, checked, every = None, False, None
-        fit_options["partial"], wanted = partial or checked, choice.params
-    theta, nominal, ident, result = fit(setup, wanted, nominal=nominal, every=every, **fit_options)
+    call = dict(options, **fit_options, params=params, extension=extension, payload=payload, deliver=deliver)
+    choosing = dict(folds=folds, seed=seed, payload=payload, progress=progress)
+    setup, choice, wanted, chosen = _chosen(
+        robot, data, model, measure, wanted, ext, options, fit_options, choosing
+    )
+    theta, nominal, ident, result = fit(setup, wanted, **chosen, **fit_options)
     bad, scores = screen_outliers(setup, theta, ident.identifiable, outliers or 0.0, f_scale)
     if bad.size and choice.diagnosis is not None and choice.diagnosis.candidates:
         screen = {**fit_options, "threshold": outliers or 0.0}
@@ -192,11 +182,56 @@ def calibrate(
     if nested is not False:
         judge = _judge(robot, data, model, measure, folds, seed, {**call, "outliers": outliers})
         choice = choice.with_nested(judge, nested is True, len(data))
+    fitted = replace(assess(setup, theta, nominal, ident, result, test), choice=choice)
+    return _delivered(fitted, setup, deliver, wanted, test, options, fit_options)
+
+
+def _chosen(
+    robot: Robot,
+    data: Dataset,
+    model: str | Model,
+    measure: str | None,
+    wanted: Any,
+    ext: Extension | str | None,
+    options: dict[str, Any],
+    fit_options: dict[str, Any],
+    choosing: dict[str, Any],
+) -> tuple[Setup, ModelChoice, Any, dict[str, Any]]:
+    """The set-up to fit, what was chosen (:mod:`pincal.choice`), the parameters to fit and what
+    the fit may reuse (``nominal``, ``every``); ``fit_options["partial"]`` set as the choice allows."""
+    from .choice import choose  # here: choice runs diagnose, which calls calibrate
+
+    given = ext if isinstance(ext, Extension) else None
+    setup = set_up(robot, data, model, measure, extension=given, **options)
+    nominal, every = _checked(setup, wanted, fit_options)  # for "auto": refuse what "all" refuses
+    start = nominal if given is None else None
+    choice = choose(setup, wanted, ext, options=options, fit_options=fit_options, start=start, **choosing)
+    if wanted == "auto" or ext == "auto":
+        checked = wanted == "auto"  # every parameter passed the rank check: so does any subset
+        if choice.extension is not None and given is None:
+            setup = set_up(robot, data, model, measure, extension=choice.extension, **options)
+            nominal, checked, every = None, False, None
+        fit_options["partial"], wanted = fit_options["partial"] or checked, choice.params
+    return setup, choice, wanted, {"nominal": nominal, "every": every}
+
+
+def _delivered(
+    fitted: Calibration,
+    setup: Setup,
+    deliver: str,
+    wanted: Any,
+    test: Dataset | None,
+    options: dict[str, Any],
+    fit_options: dict[str, Any],
+) -> Calibration:
+    """The fit ``fitted`` of ``setup`` as ``deliver`` asks (see :func:`calibrate`)."""
     if setup.problem.extension is None or deliver == "none":
-        return replace(assess(setup, theta, nominal, ident, result, test), choice=choice)
+        return fitted
     if deliver == "joint":
-        return settled(replace(assess(setup, theta, nominal, ident, result, test), choice=choice), data, test)
-    geometry = set_up(robot, data, model, measure, **options)
+        return settled(fitted, setup.data, test)
+    problem, choice = setup.problem, fitted.choice
+    assert choice is not None
+    geometry = set_up(problem.model.robot, setup.data, problem.model, problem.measurement.kind, **options)
     return _balanced(setup, geometry, _geometric_params(geometry, choice, wanted), choice, test, fit_options)
 
 

@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from .balance import LARGE
+from .balance import Delivered
 from .calibration import Calibration
 from .data import Dataset
 from .folds import fold_indices
@@ -98,46 +98,26 @@ class ResidualVerdict:
 
 
 class HeldOut:
-    """The linearised K-fold cross-validation of a fit, for any residual vector.
-
-    With an effect, each fold refits what the delivered fit fitted, as it fitted it
-    (:mod:`pincal.balance`): the rows of the model with its effect, and λ times those of the
-    same geometry without it (λ: ``cal.balance``'s weight; 0 for a joint fit; infinite for the
-    geometry first, whose geometry the rows without the effect alone decide).
-    """
+    """The linearised K-fold cross-validation of a fit, for any residual vector: each fold refits
+    what the delivered fit fitted, as it fitted it (:class:`pincal.balance.Delivered`)."""
 
     def __init__(self, cal: Calibration, data: Dataset, folds: int, seed: int) -> None:
         self.problem = cal.problem(data)
         self.kind = cal.measurement.kind
-        self.residuals = self.problem.residuals(cal.theta)
-        free = np.flatnonzero(cal.identifiability.identifiable)
-        effect = np.arange(cal.model.n_params, self.problem.n_model)
-        jac = self.problem.jacobian(cal.theta, free)
-        alone = jac.copy()
-        alone[:, np.isin(free, effect)] = 0.0  # the same model without its effect
-        theta = cal.theta.copy()
-        theta[effect] = 0.0
-        self.alone_residuals = self.problem.residuals(theta)
-        weight = 0.0 if cal.balance is None else min(cal.balance.weight, LARGE)
-        self.root = float(np.sqrt(weight))
-        norms = np.linalg.norm(jac, axis=0) + self.root * np.linalg.norm(alone, axis=0)
-        self.jac, self.alone = (m / np.where(norms > 0, norms, 1.0) for m in (jac, alone))
+        weight = 0.0 if cal.balance is None else cal.balance.weight
+        self.fit = Delivered(self.problem, cal.theta, cal.identifiability.identifiable, weight)
+        self.residuals, self.alone_residuals = self.fit.full, self.fit.alone
         poses = self.problem.pairs if self.kind == "distance" else self.problem.row_poses()[:, None]
-        self.parts = [
-            np.isin(poses, held).any(axis=1) for held in fold_indices(len(data), min(folds, len(data)), seed)
+        self.parts: list[np.ndarray] = [
+            np.asarray(np.isin(poses, held).any(axis=1))
+            for held in fold_indices(len(data), min(folds, len(data)), seed)
         ]
 
     def errors(self, residuals: np.ndarray, alone: np.ndarray | None = None) -> np.ndarray:
         """Held-out error rows (held-out rows, M) [m] for residual columns (rows, M) of the model
         with its effect, and ``alone`` those of the model without it (default: the same)."""
         alone = residuals if alone is None else alone
-        out = []
-        for test in self.parts:
-            lhs = np.vstack([self.jac[~test], self.root * self.alone[~test]])
-            rhs = np.concatenate([residuals[~test], self.root * alone[~test]])
-            step = np.linalg.lstsq(lhs, rhs, rcond=1e-10)[0]
-            out.append(residuals[test] - self.jac[test] @ step)
-        return np.concatenate(out)
+        return np.concatenate([self.fit.errors(test, residuals, alone)[0] for test in self.parts])
 
     def per_pose(self, rows: np.ndarray) -> np.ndarray:
         """Held-out rows (R, M) -> per pose the 3-D position error vectors (N, 3, M), or per pair
