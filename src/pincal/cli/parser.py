@@ -19,7 +19,9 @@ from ..options import (
     THRESHOLD,
     UNITS,
 )
+from .help_groups import group_options, report_option, version
 from .numeric import count, folds, fraction, height, reach, rotation_weight, seed, sigmas, threads
+from .template import add_template
 from .values import mapping, name_list, parameters, payload, vector3, vectors3
 
 
@@ -33,6 +35,7 @@ class _Parser(argparse.ArgumentParser):
 def build_parser() -> argparse.ArgumentParser:
     """The ``pincal`` command line: one sub-command per task."""
     parser = _Parser(prog="pincal", description="Kinematic calibration of robot arms on Pinocchio.")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {version()}")
     parser.add_argument(
         "--threads",
         type=threads,
@@ -42,6 +45,8 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     for add in (_add_calibrate, _add_diagnose, _add_demo, _add_tcp, _add_compensate, _add_plan, _add_twists):
         add(sub)
+    add_template(sub, _add_robot_options, _add_force)
+    group_options(parser)  # --help in groups (data, model, automatic choice, output), docs cited
     return parser
 
 
@@ -98,7 +103,7 @@ def _add_diagnose(sub: Any) -> None:
     """``pincal diagnose``."""
     diag = sub.add_parser("diagnose", help="name what the rigid model gets wrong, and the gain")
     _add_data_options(diag)
-    diag.add_argument("--json", type=Path, help="write the diagnosis as JSON here")
+    report_option(diag, "the diagnosis")
     diag.add_argument("--plots", type=Path, metavar="DIR", help="write a PNG of the named cause here")
     diag.add_argument("--folds", type=folds, default=5, help="folds of the cross-validation (2 or more)")
     diag.add_argument("--seed", type=seed, default=0, help="seed of the folds")
@@ -126,7 +131,7 @@ def _add_tcp(sub: Any) -> None:
     )
     tcp.add_argument("--orientation", choices=ORIENTATIONS, default="default")
     tcp.add_argument("--units", choices=sorted(UNITS), default="m", help="unit of x,y,z and of the TCP")
-    tcp.add_argument("--json", type=Path, help="write the result as JSON here")
+    report_option(tcp, "the result")
     tcp.add_argument("--columns", type=mapping, help="column names of the file, e.g. x=X_mm,y=Y_mm,a=A_deg")
     tcp.add_argument("--robot", help="compute flange poses from joint columns with this robot (URDF or name)")
     tcp.add_argument("--tip", help="with --robot: the flange frame (default: the robot's tip)")
@@ -261,7 +266,10 @@ def _add_data_options(cmd: argparse.ArgumentParser) -> None:
     cmd.add_argument("robot", help=f"a .urdf or .xacro path or a bundled robot ({', '.join(BUNDLED)})")
     _add_robot_options(cmd)
     cmd.add_argument(
-        "data", type=Path, help="measurement CSV (see contracts.md), or a folder of hole_<name>.csv files"
+        "data",
+        type=Path,
+        help="measurement CSV (see the documentation: docs/formats.md; 'pincal template' writes its "
+        "header), or a folder of hole_<name>.csv files",
     )
     cmd.add_argument("--tip", help="the measured frame (default: the robot's documented tip)")
     cmd.add_argument("--model", choices=MODELS, default="placements")
