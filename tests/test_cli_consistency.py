@@ -254,9 +254,22 @@ def test_diagnose_off_a_terminal_prints_no_progress(
 # --- the README: a door, not a diary -----------------------------------------------------------
 
 
+#: A path that exists on one machine only.
+MACHINE_PATH = re.compile(r"(?<![\w.])(/work/|/home/|/tmp/|/Users/|/root/|[A-Z]:\\)")
+
+
 def test_readme_is_at_most_10_kb_and_names_no_machine_path() -> None:
     readme = (ROOT / "README.md").read_bytes()
     assert len(readme) <= 10 * 1024, f"README.md is {len(readme)} bytes"
-    text = readme.decode("utf-8")
-    machine = re.findall(r"(?<![\w.])(/work/|/home/|/tmp/|/Users/|/root/|[A-Z]:\\\\)", text)
-    assert not machine, machine
+    assert not MACHINE_PATH.findall(readme.decode("utf-8"))
+
+
+def test_the_documentation_names_no_machine_path_and_every_readme_link_exists() -> None:
+    pages = sorted((ROOT / "docs").rglob("*.md"))
+    assert pages
+    for page in pages:
+        if "_build" not in page.parts:
+            assert not MACHINE_PATH.findall(page.read_text(encoding="utf-8")), page
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    for target in re.findall(r"\]\(((?:docs|notebooks|benchmarks)/[^)#]*)", readme):
+        assert (ROOT / target).exists(), target
