@@ -39,7 +39,17 @@ GROUPS: dict[str, list[str]] = {
     ],
     "robot description": ["--xacro-arg", "--package-path", "--kinematics", "--inertias"],
     "model": ["--model", "--orientation", "--rotation-weight", "--loss", "--outliers", "--partial"],
-    "automatic choice": ["--params", "--extend", "--folds", "--nested", "--seed", "--criterion"],
+    "automatic choice": ["--params", "--extend", "--folds", "--nested", "--seed"],
+    "planning": [
+        "--poses",
+        "--candidates",
+        "--criterion",
+        "--tool-tolerance",
+        "--sockets",
+        "--clearance",
+        "--instrument",
+        "--reach",
+    ],
     "output": ["--report", "--output", "--add-frame", "--plots", "--force", "--accept-implausible"],
 }
 
