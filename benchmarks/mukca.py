@@ -18,6 +18,7 @@ the data it was fitted to). It saves a plot of every placement's held-out error 
 Usage::
 
     python benchmarks/mukca.py DATASETS_DIR [--plot PNG] [--json FILE] [--model placements]
+        [--markdown docs/results/generated/mukca.md]
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import json  # noqa: E402
+import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
 from collections import Counter  # noqa: E402
@@ -37,6 +39,7 @@ from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
+from markdown_page import command_line, write_page  # noqa: E402
 
 import pincal  # noqa: E402
 from pincal.diagnose import diagnose  # noqa: E402
@@ -289,6 +292,7 @@ def main() -> None:
         action="store_true",
         help="also the one-placement protocol on rows made again from the floor model",
     )
+    parser.add_argument("--markdown", type=Path, metavar="MD", help="also write the tables as Markdown here")
     args = parser.parse_args()
     root = args.datasets / "mukca"
     start = time.perf_counter()
@@ -305,11 +309,16 @@ def main() -> None:
             pool, named, floors[robot_dir.name] = pooled(robot_dir, urdf, args.model, Path(folder))
             pools += pool
             suspects += named
-    print(table(rows, causes, pools))
+    printed = [table(rows, causes, pools)]
     listed = "; ".join(suspects) or "none"
-    print(f"\nplacements a robot's calibration on every placement names as suspect: {listed}")
+    printed.append(f"\nplacements a robot's calibration on every placement names as suspect: {listed}")
     if args.synthetic:
-        print(rigid_table(root, rows, floors, args.model))
+        printed.append(rigid_table(root, rows, floors, args.model))
+    print("\n".join(printed))
+    if args.markdown is not None:
+        command = command_line("mukca.py", sys.argv[1:], {str(args.datasets).rstrip("/"): "DATASETS_DIR"})
+        pages = [text.replace(str(root), "DATASETS_DIR/mukca") for text in printed]
+        write_page(args.markdown, command, pages)
     plot(rows, args.plot)
     print(f"\nplot: {args.plot}; whole benchmark {time.perf_counter() - start:.0f} s")
     if args.json is not None:

@@ -32,7 +32,7 @@ on a shared 2-core machine multithreaded BLAS makes these small solves up to 10x
 Usage::
 
     python benchmarks/real_data.py DATASETS_DIR [--json FILE] [--gao-data CSV] [--repeat 15]
-        [--scaling-plot PNG | --no-scaling]
+        [--scaling-plot PNG | --no-scaling] [--markdown docs/results/generated/real_data.md]
 """
 
 from __future__ import annotations
@@ -45,6 +45,7 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 import argparse  # noqa: E402
 import json  # noqa: E402
 import statistics  # noqa: E402
+import sys  # noqa: E402
 import time  # noqa: E402
 from collections.abc import Callable  # noqa: E402
 from dataclasses import asdict, dataclass  # noqa: E402
@@ -54,6 +55,7 @@ from typing import Any, TypeVar  # noqa: E402
 import numpy as np  # noqa: E402
 import pinocchio as pin  # noqa: E402
 from identification_scaling import FIGURE, TIAGO_TIP, load_tiago, plot, scaling  # noqa: E402
+from markdown_page import command_line, table, text_block, write_page  # noqa: E402
 
 import pincal  # noqa: E402
 from pincal.data import Dataset, atomic_write, read_table, write_csv  # noqa: E402
@@ -330,6 +332,9 @@ def main(argv: list[str] | None = None) -> None:
         metavar="DIR",
         help="also write the UR10, Panda and Gao data as pincal CSVs here, for the printed commands",
     )
+    parser.add_argument(
+        "--markdown", type=Path, metavar="MD", help="also write the table, commands and notes in Markdown"
+    )
     args = parser.parse_args(argv)
     if not args.datasets.is_dir():
         parser.error(f"{args.datasets} is not a folder")
@@ -416,6 +421,10 @@ def main(argv: list[str] | None = None) -> None:
     total = time.perf_counter() - start
     print(f"total wall time {total:.0f} s")
 
+    if args.markdown:
+        names = {str(args.datasets).rstrip("/"): "DATASETS_DIR", str(args.export): "EXPORT"}
+        markdown(args.markdown, rows, notes, scaling_records, argv, names)
+        print(f"Markdown written to {args.markdown}")
     if args.json:
         doc = {
             "table": [asdict(r) for r in rows],
@@ -427,6 +436,57 @@ def main(argv: list[str] | None = None) -> None:
         }
         atomic_write(args.json, json.dumps(doc, indent=2, default=float) + "\n")
         print(f"JSON written to {args.json}")
+
+
+def markdown(
+    path: Path,
+    rows: list[Row],
+    notes: list[str],
+    scaling_records: list[dict[str, Any]],
+    argv: list[str] | None,
+    names: dict[str, str],
+) -> None:
+    """The results page's generated part: the table, each row's command, the notes, the scaling."""
+    header = ["dataset", "model", "params", "train RMS [mm]", "held-out RMS [mm]", "held out by", "anchor"]
+    header.append("time [s]")
+    body = [[r.dataset, r.model, r.params, f"{r.train_mm:.2f}", f"{r.held_mm:.2f}"] for r in rows]
+    for line, r in zip(body, rows):
+        line += [r.held_by, r.anchor, f"{r.seconds:.3f}"]
+    commands = [f"- {r.dataset} / {r.model}: `{_named(r.command, names)}`" for r in rows]
+    sections = [
+        table(header, body),
+        "",
+        "params: identified parameters, registration and tool included. RMS of the 3-D position "
+        "error, distances for gao2013. `*` the command's defaults: `--params auto --extend auto`.",
+        "",
+        "The `pincal calibrate` command that produces each row's model and held-out figure "
+        "(`EXPORT`: the folder given to `--export`):",
+        "",
+        *commands,
+        "",
+        "What was chosen, per dataset:",
+        "",
+        text_block(_named("\n".join(notes), names)),
+    ]
+    if scaling_records:
+        poses = sorted({r["poses"] for r in scaling_records})
+        robots = dict.fromkeys(r["robot"] for r in scaling_records)
+        grid = [
+            [f"{name} ({recs[poses[0]]['joints']} joints)", *(f"{recs[n]['seconds']:.3f}" for n in poses)]
+            for name in robots
+            for recs in [{r["poses"]: r for r in scaling_records if r["robot"] == name}]
+        ]
+        sections += ["", "Identification time [s], placements, simulated position data:", ""]
+        sections.append(table(["robot", *(f"{n} poses" for n in poses)], grid))
+    argv = sys.argv[1:] if argv is None else argv
+    write_page(path, command_line("real_data.py", argv, names), sections)
+
+
+def _named(text: str, names: dict[str, str]) -> str:
+    """``text`` with each path of ``names`` written as its name."""
+    for path, name in names.items():
+        text = text.replace(path, name)
+    return text
 
 
 if __name__ == "__main__":

@@ -184,7 +184,7 @@ def tool_orientation(
 def calibrate_tool(
     rotations: np.ndarray, positions: np.ndarray, orientation: str = "default", scale: float = 1.0
 ) -> ToolCalibration:
-    """TCP and tool orientation from flange poses (rows as in ``contracts.md``).
+    """TCP and tool orientation from flange poses (rows as ``docs/formats.md`` describes them).
 
     Args:
         rotations: ``base_R_flange`` of each row (n, 3, 3).

@@ -192,18 +192,37 @@ def plausible(cal: Calibration, data: Dataset, args: argparse.Namespace) -> Verd
     return verdict
 
 
-def progress_line(what: str) -> Callable[[int, int, str], None] | None:
-    """A one-line progress display on stderr (None when stderr is not a terminal)."""
-    if not sys.stderr.isatty():
-        return None
+class ProgressBar:
+    """A tqdm progress bar on stderr, fed by the library's ``progress(done, total, label)``
+    callback; a new total starts a new bar (another stage, or round of the choice)."""
 
-    def show(done: int, total: int, label: str) -> None:
-        print(f"\r  {what} {done}/{total} ({label})".ljust(72), end="", file=sys.stderr, flush=True)
+    def __init__(self, what: str) -> None:
+        self.what = what
+        self.bar: Any = None
 
-    return show
+    def __call__(self, done: int, total: int, label: str) -> None:
+        from tqdm import tqdm
+
+        if self.bar is None or self.bar.total != total:
+            self.close()
+            self.bar = tqdm(total=total, desc=f"  {self.what}", file=sys.stderr, leave=False, unit="step")
+        self.bar.set_postfix_str(label, refresh=False)
+        self.bar.update(done - self.bar.n)
+
+    def close(self) -> None:
+        """Close the bar: it leaves no line behind."""
+        if self.bar is not None:
+            self.bar.close()
+            self.bar = None
+
+
+def progress_line(what: str) -> ProgressBar | None:
+    """A progress bar for ``what``; None, and nothing shown, when stderr is not a terminal (a
+    log, a pipe, CI)."""
+    return ProgressBar(what) if sys.stderr.isatty() else None
 
 
 def end_progress(show: Callable[[int, int, str], None] | None) -> None:
-    """Close the progress line."""
-    if show is not None:
-        print(file=sys.stderr)
+    """Close the progress bar."""
+    if isinstance(show, ProgressBar):
+        show.close()

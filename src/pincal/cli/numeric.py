@@ -48,11 +48,6 @@ def rotation_weight(text: str) -> float:
     return real(text, "the rotation weight [m/rad]", 0.0, 1e3, strict=True)
 
 
-def noise(text: str) -> float:
-    """``--noise`` [mm, RMS per axis]: above 0, at most 100 mm."""
-    return real(text, "the instrument's noise [mm, RMS per axis]", 0.0, 100.0, strict=True)
-
-
 def sigmas(text: str) -> float:
     """``--outliers`` [robust standard deviations]: 0 (keep every pose) or more."""
     return real(text, "the outlier threshold [robust std]", 0.0, MAX_LENGTH)

@@ -19,7 +19,10 @@ from ..options import (
     THRESHOLD,
     UNITS,
 )
-from .numeric import count, folds, fraction, height, noise, reach, rotation_weight, seed, sigmas, threads
+from .deliver_options import add_geometry, add_noise
+from .help_groups import group_options, report_option, version
+from .numeric import count, folds, fraction, height, reach, rotation_weight, seed, sigmas, threads
+from .template import add_template
 from .values import mapping, name_list, parameters, payload, vector3, vectors3
 
 
@@ -33,6 +36,7 @@ class _Parser(argparse.ArgumentParser):
 def build_parser() -> argparse.ArgumentParser:
     """The ``pincal`` command line: one sub-command per task."""
     parser = _Parser(prog="pincal", description="Kinematic calibration of robot arms on Pinocchio.")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {version()}")
     parser.add_argument(
         "--threads",
         type=threads,
@@ -42,6 +46,8 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     for add in (_add_calibrate, _add_diagnose, _add_demo, _add_tcp, _add_compensate, _add_plan, _add_twists):
         add(sub)
+    add_template(sub, _add_robot_options, _add_force)
+    group_options(parser)  # --help in groups (data, model, automatic choice, output), docs cited
     return parser
 
 
@@ -53,7 +59,7 @@ def _add_calibrate(sub: Any) -> None:
     cal.add_argument("--holdout", type=fraction, help="fraction of the poses to hold out instead of --test")
     cal.add_argument("--seed", type=seed, default=0, help="seed of the --holdout split")
     cal.add_argument("--report", type=Path, help="write the JSON report here")
-    _add_noise(cal)
+    add_noise(cal)
     cal.add_argument(
         "-o",
         "--output",
@@ -80,26 +86,15 @@ def _add_calibrate(sub: Any) -> None:
         "diagnosis on the chosen geometry and adds the cause it names if its cross-validated test passes; "
         "'none'; or EFFECT:JOINT",
     )
-    cal.add_argument(
-        "--geometry",
-        choices=["first", "joint"],
-        default="first",
-        help="with an effect: 'first' (default) writes the best URDF alone and fits the effect on top of it "
-        "(the sidecar completes it); 'joint' fits geometry and effect together (best with the sidecar, "
-        "physically closest effect; the URDF alone is then worse, and the report says by how much)",
-    )
-    cal.add_argument(
-        "--folds", type=folds, default=5, help="folds of --extend auto's and the nested cross-validation"
-    )
+    add_geometry(cal)
+    cal.add_argument("--folds", type=folds, default=5, help="folds of --extend auto's and nested CV")
     cal.add_argument(
         "--nested",
         choices=["auto", "yes", "no"],
         default="auto",
         help="judge the whole choice by nested cross-validation: 'auto' when cheap (default)",
     )
-    cal.add_argument(
-        "--pairs", choices=["all", "gao"], default="all", help="pose pairs for --measure distance"
-    )
+    cal.add_argument("--pairs", choices=["all", "gao"], default="all", help="pose pairs for --measure distance")
     _add_force(cal)
 
 
@@ -107,8 +102,8 @@ def _add_diagnose(sub: Any) -> None:
     """``pincal diagnose``."""
     diag = sub.add_parser("diagnose", help="name what the rigid model gets wrong, and the gain")
     _add_data_options(diag)
-    diag.add_argument("--json", type=Path, help="write the diagnosis as JSON here")
-    _add_noise(diag)
+    report_option(diag, "the diagnosis")
+    add_noise(diag)
     diag.add_argument("--plots", type=Path, metavar="DIR", help="write a PNG of the named cause here")
     diag.add_argument("--folds", type=folds, default=5, help="folds of the cross-validation (2 or more)")
     diag.add_argument("--seed", type=seed, default=0, help="seed of the folds")
@@ -136,7 +131,7 @@ def _add_tcp(sub: Any) -> None:
     )
     tcp.add_argument("--orientation", choices=ORIENTATIONS, default="default")
     tcp.add_argument("--units", choices=sorted(UNITS), default="m", help="unit of x,y,z and of the TCP")
-    tcp.add_argument("--json", type=Path, help="write the result as JSON here")
+    report_option(tcp, "the result")
     tcp.add_argument("--columns", type=mapping, help="column names of the file, e.g. x=X_mm,y=Y_mm,a=A_deg")
     tcp.add_argument("--robot", help="compute flange poses from joint columns with this robot (URDF or name)")
     tcp.add_argument("--tip", help="with --robot: the flange frame (default: the robot's tip)")
@@ -263,16 +258,6 @@ def _add_robot_options(cmd: argparse.ArgumentParser, flag: str = "ROBOT") -> Non
     )
 
 
-def _add_noise(cmd: argparse.ArgumentParser) -> None:
-    cmd.add_argument(
-        "--noise",
-        type=noise,
-        metavar="MM",
-        help="the instrument's noise, RMS per axis, in mm whatever the data's units: the residual verdict "
-        "(explained / unexplained) is judged against it (default: estimated from repeated poses, if any)",
-    )
-
-
 def _add_force(cmd: argparse.ArgumentParser) -> None:
     cmd.add_argument("--force", action="store_true", help="replace output files that exist already")
 
@@ -281,7 +266,10 @@ def _add_data_options(cmd: argparse.ArgumentParser) -> None:
     cmd.add_argument("robot", help=f"a .urdf or .xacro path or a bundled robot ({', '.join(BUNDLED)})")
     _add_robot_options(cmd)
     cmd.add_argument(
-        "data", type=Path, help="measurement CSV (see contracts.md), or a folder of hole_<name>.csv files"
+        "data",
+        type=Path,
+        help="measurement CSV (see the documentation: docs/formats.md; 'pincal template' writes its "
+        "header), or a folder of hole_<name>.csv files",
     )
     cmd.add_argument("--tip", help="the measured frame (default: the robot's documented tip)")
     cmd.add_argument("--model", choices=MODELS, default="placements")

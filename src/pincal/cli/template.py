@@ -1,0 +1,48 @@
+"""``pincal template``: the header of a measurement CSV for a robot, with its units."""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from ..options import BUNDLED, UNITS
+
+#: What adds the shared options to a sub-command (:mod:`pincal.cli.parser`'s).
+Adder = Callable[[argparse.ArgumentParser], None]
+
+
+def add_template(sub: Any, robot_options: Adder, force: Adder) -> None:
+    """The ``pincal template`` sub-command and its options (``robot_options``: how ROBOT is
+    read; ``force``: ``--force``)."""
+    tpl = sub.add_parser("template", help="write the header of a measurement CSV for a robot, to fill")
+    tpl.add_argument("robot", help=f"a .urdf or .xacro path or a bundled robot ({', '.join(BUNDLED)})")
+    robot_options(tpl)
+    tpl.add_argument("--tip", help="the measured frame (default: the robot's documented tip)")
+    kind = tpl.add_mutually_exclusive_group()
+    kind.add_argument("--pose", action="store_true", help="add qw,qx,qy,qz: the measured orientation")
+    kind.add_argument("--points", action="store_true", help="a point column (fixed points) instead of x,y,z")
+    tpl.add_argument("--degrees", action="store_true", help="revolute joint values in degrees")
+    tpl.add_argument("--units", choices=sorted(UNITS), default="m", help="unit of x,y,z and prismatic joints")
+    tpl.add_argument("-o", "--output", type=Path, help="write the template here (default: stdout)")
+    force(tpl)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the command; 0 on success."""
+    from ..files import atomic_write
+    from ..robots import load_robot
+    from ..template import csv_template
+    from .common import check_outputs, robot_options, urdf_path
+
+    check_outputs(args, [args.output], {"input URDF": urdf_path(args.robot)})
+    robot = load_robot(args.robot, tip=args.tip, **robot_options(args))
+    kind = "pose" if args.pose else "points" if args.points else "position"
+    text = csv_template(robot, kind, args.units, args.degrees)
+    if args.output is None:
+        print(text, end="")
+        return 0
+    atomic_write(args.output, text)
+    print(f"template written to {args.output}: fill one row per pose")
+    return 0
