@@ -39,7 +39,15 @@ GROUPS: dict[str, list[str]] = {
         "--noise",
     ],
     "robot description": ["--xacro-arg", "--package-path", "--kinematics", "--inertias"],
-    "model": ["--model", "--geometry", "--orientation", "--rotation-weight", "--loss", "--outliers", "--partial"],
+    "model": [
+        "--model",
+        "--geometry",
+        "--orientation",
+        "--rotation-weight",
+        "--loss",
+        "--outliers",
+        "--partial",
+    ],
     "automatic choice": ["--params", "--extend", "--folds", "--nested", "--seed"],
     "planning": [
         "--poses",

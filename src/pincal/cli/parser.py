@@ -94,7 +94,7 @@ def _add_calibrate(sub: Any) -> None:
         default="auto",
         help="judge the whole choice by nested cross-validation: 'auto' when cheap (default)",
     )
-    cal.add_argument("--pairs", choices=["all", "gao"], default="all", help="pose pairs for --measure distance")
+    cal.add_argument("--pairs", choices=["all", "gao"], default="all", help="pairs for --measure distance")
     _add_force(cal)
 
 
