@@ -126,6 +126,7 @@ def report_dict(
         ),
         "test": pair(cal.test_before, cal.test_after, cal.test_urdf, exported.test if exported else None),
         "residual": None if outcome is None else outcome.residual.to_dict(),
+        "balance": None if cal.balance is None else cal.balance.to_dict(),
         "solver": {"jacobian_evaluations": cal.n_evaluations, "message": cal.message},
         "excluded_poses": [{"row": row, "residual_mm": size} for row, size in cal.excluded],
         "parameters": parameter_rows(cal),

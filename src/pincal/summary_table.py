@@ -78,6 +78,13 @@ def choice_lines(cal: Calibration, data: Dataset | None = None) -> list[str]:
                 lines.append(f"  {OFFSETS_CAUSE}")
         if diag is not None and diag.untried:
             lines.append(f"  {diag.untried}")
+        lines += [f"  rejected {c.extension.label}: {c.implausible}" for c in (diag.rejected if diag else ())]
+        if cal.balance is not None:
+            weight = "∞: the geometry alone, the effect on top" if cal.balance.weight == float("inf") else ""
+            lines.append(
+                f"  URDF kept the best URDF alone: weight of the rows without the effect "
+                f"{weight or f'{cal.balance.weight:g}'} (cross-validated)"
+            )
         if len(choice.rounds) > 1:
             each = (
                 f"{r.cause or 'none'} on {len(r.params or ()) or 'all'} parameters" for r in choice.rounds
