@@ -20,6 +20,7 @@ from ..options import (
     UNITS,
 )
 from .numeric import count, folds, fraction, height, reach, rotation_weight, seed, sigmas, threads
+from .recording_args import add_accuracy, add_extract, add_recording_options
 from .values import mapping, name_list, parameters, payload, vector3, vectors3
 
 
@@ -42,6 +43,8 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     for add in (_add_calibrate, _add_diagnose, _add_demo, _add_tcp, _add_compensate, _add_plan, _add_twists):
         add(sub)
+    add_extract(sub)
+    add_accuracy(sub)
     return parser
 
 
@@ -261,7 +264,7 @@ def _add_data_options(cmd: argparse.ArgumentParser) -> None:
     cmd.add_argument("robot", help=f"a .urdf or .xacro path or a bundled robot ({', '.join(BUNDLED)})")
     _add_robot_options(cmd)
     cmd.add_argument(
-        "data", type=Path, help="measurement CSV (see contracts.md), or a folder of hole_<name>.csv files"
+        "data", type=Path, help="measurement CSV, a folder of hole_<name>.csv files, or a ROS recording"
     )
     cmd.add_argument("--tip", help="the measured frame (default: the robot's documented tip)")
     cmd.add_argument("--model", choices=MODELS, default="placements")
@@ -312,6 +315,7 @@ def _add_data_options(cmd: argparse.ArgumentParser) -> None:
         help="weight of orientation residuals for pose data [m/rad] (default 0.1: 1 mrad ~ 0.1 mm)",
     )
     _add_plausibility_options(cmd)
+    add_recording_options(cmd)
 
 
 def _add_plausibility_options(cmd: argparse.ArgumentParser) -> None:
