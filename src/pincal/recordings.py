@@ -213,13 +213,13 @@ def _read_series(
 def _clock_warning(joints: JointSeries, measure: MeasureSeries, options: RecordingOptions) -> list[str]:
     """A warning when the two clocks disagree by more than a static segment lasts."""
     lag = _clock_offset(measure.times + options.time_offset, measure.received)
-    gap = _clock_offset(joints.times, joints.received) - lag
+    gap = lag - _clock_offset(joints.times, joints.received)  # what --time-offset should add
     if abs(gap) <= options.duration:
         return []
     return [
-        f"the joint states' and {measure.source}'s stamps disagree by {gap:.3g} s against the recording "
-        f"time, more than --static-time {options.duration:g} s: pass --time-offset {gap:.3g} if the "
-        "measurement's clock is off"
+        f"the stamps of {measure.source} and of the joint states disagree by {gap:.3g} s against the "
+        f"recording time, more than --static-time {options.duration:g} s: if the measurement's clock is "
+        f"off, pass --time-offset {options.time_offset + gap:.3g}"
     ]
 
 

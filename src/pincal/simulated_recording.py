@@ -35,6 +35,8 @@ class Session:
         gripper: the gripper joint's name, or None for no gripper.
         joint_topic, measure_topic: where the joint states and the tracker publish (None: not at all).
         tcp_topic: where the controller's own TCP pose is published (``PoseStamped``), or None.
+        tf_child: the tracker publishes its point on ``/tf`` instead, as the transform from
+            ``tracker`` to this frame (rotation identity), or None.
     """
 
     hold: float = 1.0
@@ -47,6 +49,7 @@ class Session:
     joint_topic: str | None = "/joint_states"
     measure_topic: str | None = "/tracker/point"
     tcp_topic: str | None = None
+    tf_child: str | None = None
 
 
 class Trajectory:
@@ -87,6 +90,11 @@ class _Bag:
 
         self.ros1 = storage == "ros1"
         self.store = get_typestore(Stores.ROS1_NOETIC if self.ros1 else Stores.ROS2_HUMBLE)
+        if "tf2_msgs/msg/TFMessage" not in self.store.types:  # ROS 1's store lacks it
+            from rosbags.typesys import get_types_from_msg
+
+            tf = get_types_from_msg("geometry_msgs/TransformStamped[] transforms", "tf2_msgs/msg/TFMessage")
+            self.store.register(tf)
         if self.ros1:
             from rosbags.rosbag1 import Writer as Writer1
 
@@ -168,9 +176,25 @@ def _tracker_messages(
         msg = types["geometry_msgs/msg/PointStamped"](
             header=bag.header(t + session.tracker_clock, "tracker"), point=point
         )
-        if session.measure_topic is not None:
+        if session.tf_child is not None:
+            msg = _tf_message(bag, msg.header, session.tf_child, p)
+            bag.add(t + 0.002, "/tf", msg)
+        elif session.measure_topic is not None:
             bag.add(t + 0.002, session.measure_topic, msg)
     return noise
+
+
+def _tf_message(bag: _Bag, header: Any, child: str, p: np.ndarray) -> Any:
+    """A ``/tf`` message holding one transform ``header.frame_id`` -> ``child`` at ``p`` [m]."""
+    types = bag.store.types
+    transform = types["geometry_msgs/msg/Transform"](
+        translation=types["geometry_msgs/msg/Vector3"](x=p[0], y=p[1], z=p[2]),
+        rotation=types["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+    )
+    stamped = types["geometry_msgs/msg/TransformStamped"](
+        header=header, child_frame_id=child, transform=transform
+    )
+    return types["tf2_msgs/msg/TFMessage"](transforms=[stamped])
 
 
 def _tcp_messages(bag: _Bag, path: Trajectory, truth: TrueRobot, topic: str) -> None:

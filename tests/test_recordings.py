@@ -1,0 +1,172 @@
+"""ROS recordings as data (issue 34): a simulated session recorded as MCAP, sqlite3 and ROS 1 bags
+is read back as the static poses it holds, calibrates as the same poses given as a CSV, and a
+recording that cannot be read unambiguously is refused with one line and no output."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from cli_run import one_error_line, run
+
+from pincal.data import Dataset, write_csv
+from pincal.recordings import RecordingOptions, read_recording, static_segments
+from pincal.simulated_recording import Session, write_recording
+from pincal.simulation import TrueRobot, random_truth
+
+pytest.importorskip("rosbags")
+
+N_POSES = 40
+STORAGES = {"mcap": "rec_mcap", "sqlite3": "rec_sqlite3", "ros1": "rec.bag"}
+
+
+class Recorded:
+    """The simulated session: truth, poses, the recordings and the reference CSVs."""
+
+    def __init__(self, folder: Path, robot) -> None:  # type: ignore[no-untyped-def]
+        self.folder = folder
+        self.robot = robot
+        self.truth: TrueRobot = random_truth(robot, seed=3)
+        self.poses = robot.random_configurations(N_POSES, np.random.default_rng(1), 0.05)
+        self.paths = {kind: folder / name for kind, name in STORAGES.items()}
+        for kind, path in self.paths.items():
+            self.reference: Dataset = write_recording(path, self.truth, self.poses, kind, seed=2)
+        self.csv = folder / "same_poses.csv"
+        write_csv(self.csv, self.reference)
+        held_out = robot.random_configurations(100, np.random.default_rng(5), 0.05)
+        self.test = folder / "held_out.csv"
+        write_csv(self.test, self.truth.measure(held_out, 3e-5, seed=7))
+
+
+@pytest.fixture(scope="module")
+def session(tmp_path_factory: pytest.TempPathFactory, get_robot) -> Recorded:  # type: ignore[no-untyped-def]
+    return Recorded(tmp_path_factory.mktemp("recordings"), get_robot("ur5"))
+
+
+def _rows(path: Path) -> tuple[list[str], np.ndarray]:
+    with open(path) as fh:
+        rows = list(csv.reader(fh))
+    return rows[0], np.array(rows[1:], dtype=float)
+
+
+@pytest.mark.parametrize("kind", list(STORAGES))
+def test_extract_returns_the_poses(session: Recorded, kind: str, tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    """Exactly the 40 static poses, in order, joints within 1e-4 rad, only the chain's joints,
+    the measurement within the tracker's averaged noise and its spread near the 0.03 mm it has."""
+    out = tmp_path / "poses.csv"
+    code, _, err = run(capsys, "extract", "ur5", session.paths[kind], "-o", out)
+    assert code == 0, err
+    header, values = _rows(out)
+    n = session.robot.n_joints
+    assert header == [*session.robot.joint_names, "x", "y", "z", "spread_mm"]
+    assert values.shape == (N_POSES, n + 4)
+    assert np.abs(values[:, :n] - session.poses).max() < 1e-4
+    true_points = session.truth.target(session.poses)[0]
+    assert np.abs(values[:, n : n + 3] - true_points).max() < 3e-5  # 0.03 mm noise, averaged
+    assert 0.02 < np.median(values[:, -1]) < 0.04
+
+
+def test_extract_without_robot_keeps_every_joint(session: Recorded, tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    out = tmp_path / "all.csv"
+    code, _, err = run(capsys, "extract", session.paths["mcap"], "-o", out)
+    assert code == 0, err
+    header, values = _rows(out)
+    assert set(header[:7]) == {*session.robot.joint_names, "gripper_finger_joint"}
+    assert len(values) == N_POSES
+
+
+@pytest.mark.parametrize("kind", list(STORAGES))
+def test_calibration_from_a_recording_matches_the_csv(
+    session: Recorded, kind: str, tmp_path: Path, capsys
+) -> None:  # type: ignore[no-untyped-def]
+    """The held-out RMS of a calibration from each recording is within 2 % of the same poses' CSV."""
+    rms = {}
+    for name, data in (("csv", session.csv), (kind, session.paths[kind])):
+        report = tmp_path / f"{name}.json"
+        code, _, err = run(capsys, "calibrate", "ur5", data, "--test", session.test, "--report", report)
+        assert code == 0, err
+        rms[name] = json.loads(report.read_text())["test"]["after"]["rms_mm"]
+    assert abs(rms[kind] - rms["csv"]) <= 0.02 * rms["csv"], rms
+    assert rms["csv"] < 0.06  # at the held-out noise floor (0.052 mm): the comparison is of good fits
+
+
+def test_bare_storage_files_read_as_their_folder(session: Recorded) -> None:
+    """A bare .mcap or .db3 file gives the poses its rosbag2 folder gives."""
+    joints = session.robot.joint_names
+    for kind, suffix in (("mcap", ".mcap"), ("sqlite3", ".db3")):
+        folder = read_recording(session.paths[kind], joints, RecordingOptions()).data
+        (bare,) = session.paths[kind].glob(f"*{suffix}")
+        alone = read_recording(bare, joints, RecordingOptions()).data
+        np.testing.assert_array_equal(alone.q, folder.q)
+        np.testing.assert_array_equal(alone.points, folder.points)
+
+
+def test_no_joint_states_is_refused(session: Recorded, tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    path = tmp_path / "no_joints"
+    write_recording(path, session.truth, session.poses[:5], "mcap", Session(joint_topic=None), seed=2)
+    report = tmp_path / "r.json"
+    line = one_error_line(capsys, "calibrate", "ur5", path, "--report", report)
+    assert "JointState" in line and "/joint_states" in line and "--joint-topic" in line
+    assert not report.exists()
+
+
+def test_two_measurement_topics_are_refused_then_chosen(session: Recorded, tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    """A tracker beside the controller's own TCP pose: refused, naming both, until one is named;
+    the PoseStamped gives orientations with --measure pose only."""
+    path = tmp_path / "two"
+    write_recording(
+        path, session.truth, session.poses[:6], "sqlite3", Session(tcp_topic="/tcp_pose/pose"), seed=2
+    )
+    report = tmp_path / "r.json"
+    line = one_error_line(capsys, "calibrate", "ur5", path, "--report", report)
+    assert "/tcp_pose/pose" in line and "/tracker/point" in line and "--measure-topic" in line
+    assert not report.exists()
+    options = RecordingOptions(measure_topic="/tcp_pose/pose")
+    assert read_recording(path, None, options).data.quaternions is None
+    posed = read_recording(
+        path, session.robot.joint_names, RecordingOptions("/joint_states", "/tcp_pose/pose", orientation=True)
+    ).data
+    nominal = [session.robot.frame_placement(q) for q in session.poses[:6]]
+    np.testing.assert_allclose(posed.points, [p.translation for p in nominal], atol=1e-9)
+    assert np.allclose(
+        np.abs(posed.quaternions[:, 0]),
+        [abs(__import__("pinocchio").Quaternion(p.rotation).w) for p in nominal],
+    )
+
+
+def test_tf_transform_and_clock_offset(session: Recorded, tmp_path: Path) -> None:
+    """A /tf transform is the measurement with --measure-frame; a tracker clock 3 s off is warned
+    of, and --time-offset puts the measurement back on the poses."""
+    path = tmp_path / "tf.bag"
+    reference = write_recording(
+        path, session.truth, session.poses[:8], "ros1", Session(tf_child="ball", tracker_clock=3.0), seed=2
+    )
+    joints = session.robot.joint_names
+    off = read_recording(path, joints, RecordingOptions(measure_frame="tracker:ball"))
+    assert any("--time-offset -3" in w for w in off.warnings), off.warnings
+    fixed = read_recording(path, joints, RecordingOptions(measure_frame="tracker:ball", time_offset=-3.0))
+    assert not fixed.warnings
+    assert len(fixed.data) == 8
+    assert np.abs(fixed.data.points - reference.points).max() < 3e-5
+
+
+def test_static_segments_of_a_known_series() -> None:
+    """Rests of known length are found with their edges, moves and short rests are not."""
+    t = np.arange(0.0, 10.0, 0.01)
+    q = np.where(t < 2.0, 0.0, np.where(t < 3.0, t - 2.0, np.where(t < 3.3, 1.0, 1.0 + (t - 3.3))))
+    q = np.where(t >= 6.0, 3.7, q)[:, None]
+    found = static_segments(t, q, 1e-4, 0.5)
+    assert len(found) == 2
+    assert found[0][0] == 0.0 and abs(found[0][1] - 2.0) <= 0.011
+    assert abs(found[1][0] - 6.0) <= 0.011 and abs(found[1][1] - 9.99) < 1e-9
+
+
+def test_subset_keeps_the_spread() -> None:
+    data = Dataset(("j",), np.arange(4.0)[:, None], np.zeros((4, 3)), spread=np.array([1.0, 2.0, 3.0, 4.0]))
+    picked = data.subset([3, 1])
+    assert picked.spread is not None
+    np.testing.assert_array_equal(picked.spread, [4.0, 2.0])
+    assert Dataset(("j",), np.zeros((2, 1)), np.zeros((2, 3))).subset([1]).spread is None
