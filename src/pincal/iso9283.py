@@ -167,11 +167,14 @@ def iso9283(
     if not names:
         raise DataError("no visits: the data has no rows")
     labels_arr = np.array([str(label) for label in labels])
+    once = [name for name in names if np.count_nonzero(labels_arr == name) < 2]
+    if once:
+        raise DataError(
+            f"pose(s) {', '.join(once)} visited once: ISO 9283's repeatability needs 2 visits or more of each"
+        )
     poses = []
     for name in names:
         visits = np.flatnonzero(labels_arr == name)
-        if len(visits) < 2:
-            raise DataError(f"pose {name} is visited once: ISO 9283's repeatability needs 2 visits or more")
         angles = None
         if commanded_rotations is not None and attained_rotations is not None:
             mean_command = Rotation.from_matrix(commanded_rotations[visits]).mean().as_matrix()
