@@ -172,14 +172,12 @@ def _tracker_messages(
     points = truth.target(path.at(times))[0] + noise
     types = bag.store.types
     for t, p in zip(times, points):
-        point = types["geometry_msgs/msg/Point"](x=p[0], y=p[1], z=p[2])
-        msg = types["geometry_msgs/msg/PointStamped"](
-            header=bag.header(t + session.tracker_clock, "tracker"), point=point
-        )
+        header = bag.header(t + session.tracker_clock, "tracker")
         if session.tf_child is not None:
-            msg = _tf_message(bag, msg.header, session.tf_child, p)
-            bag.add(t + 0.002, "/tf", msg)
+            bag.add(t + 0.002, "/tf", _tf_message(bag, header, session.tf_child, p))
         elif session.measure_topic is not None:
+            point = types["geometry_msgs/msg/Point"](x=p[0], y=p[1], z=p[2])
+            msg = types["geometry_msgs/msg/PointStamped"](header=header, point=point)
             bag.add(t + 0.002, session.measure_topic, msg)
     return noise
 
