@@ -167,3 +167,88 @@ def test_subset_keeps_the_spread() -> None:
     assert picked.spread is not None
     np.testing.assert_array_equal(picked.spread, [4.0, 2.0])
     assert Dataset(("j",), np.zeros((2, 1)), np.zeros((2, 3))).subset([1]).spread is None
+
+
+CALIBRATION_MSGS = {
+    "robot_calibration_msgs/msg/CameraParameter": "string name\nfloat64 value\n",
+    "robot_calibration_msgs/msg/ExtendedCameraInfo": (
+        "sensor_msgs/CameraInfo camera_info\nrobot_calibration_msgs/CameraParameter[] parameters\n"
+    ),
+    "robot_calibration_msgs/msg/Observation": (
+        "string sensor_name\ngeometry_msgs/PointStamped[] features\n"
+        "robot_calibration_msgs/ExtendedCameraInfo ext_camera_info\n"
+        "sensor_msgs/PointCloud2 cloud\nsensor_msgs/Image image\n"
+    ),
+    "robot_calibration_msgs/msg/CalibrationData": (
+        "sensor_msgs/JointState joint_states\nrobot_calibration_msgs/Observation[] observations\n"
+    ),
+}
+
+
+def _write_calibration_data(path: Path, names: tuple[str, ...], q: np.ndarray, points: np.ndarray) -> None:
+    """robot_calibration's snapshots, one per pose, each with one observation of one point."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    for name, text in CALIBRATION_MSGS.items():
+        store.register(get_types_from_msg(text, name))
+    t = store.types
+    with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        conn = writer.add_connection(
+            "/calibration_data", "robot_calibration_msgs/msg/CalibrationData", typestore=store
+        )
+        for k, (row, p) in enumerate(zip(q, points)):
+            header = t["std_msgs/msg/Header"](
+                stamp=t["builtin_interfaces/msg/Time"](sec=k, nanosec=0), frame_id=""
+            )
+            state = t["sensor_msgs/msg/JointState"](
+                header=header,
+                name=list(names[::-1]),
+                position=row[::-1].copy(),
+                velocity=np.zeros(0),
+                effort=np.zeros(0),
+            )
+            point = t["geometry_msgs/msg/PointStamped"](header=header, point=t["geometry_msgs/msg/Point"](*p))
+            observation = t["robot_calibration_msgs/msg/Observation"](
+                sensor_name="tracker",
+                features=[point],
+                ext_camera_info=t["robot_calibration_msgs/msg/ExtendedCameraInfo"](
+                    camera_info=_empty(store, "sensor_msgs/msg/CameraInfo"), parameters=[]
+                ),
+                cloud=_empty(store, "sensor_msgs/msg/PointCloud2"),
+                image=_empty(store, "sensor_msgs/msg/Image"),
+            )
+            message = t["robot_calibration_msgs/msg/CalibrationData"](
+                joint_states=state, observations=[observation]
+            )
+            raw = store.serialize_cdr(message, "robot_calibration_msgs/msg/CalibrationData")
+            writer.write(conn, (k + 1) * 1_000_000_000, raw)
+
+
+def _empty(store, kind: str):  # type: ignore[no-untyped-def]
+    """A message of ``kind`` with every field empty or zero (from the typestore's field definitions)."""
+    from rosbags.interfaces import Nodetype
+
+    values = {}
+    for name, (node, detail) in store.fielddefs[kind][1]:
+        if node == Nodetype.NAME:
+            values[name] = _empty(store, detail)
+        elif node == Nodetype.BASE:
+            values[name] = "" if detail[0] == "string" else False if detail[0] == "bool" else 0
+        else:
+            (sub, subdetail), size = detail
+            numeric = sub == Nodetype.BASE and subdetail[0] not in ("string", "bool")
+            values[name] = np.zeros(size, dtype=np.dtype(subdetail[0])) if numeric else []
+    return store.types[kind](**values)
+
+
+def test_calibration_data_snapshots_are_one_pose_each(session: Recorded, tmp_path: Path) -> None:
+    """robot_calibration's CalibrationData: each message is a pose, joints by name, no segmenting."""
+    q = session.poses[:7]
+    points = session.truth.target(q)[0]
+    path = tmp_path / "capture"
+    _write_calibration_data(path, session.robot.joint_names, q, points)
+    data = read_recording(path, session.robot.joint_names, RecordingOptions()).data
+    np.testing.assert_array_equal(data.q, q)
+    np.testing.assert_array_equal(data.points, points)

@@ -252,7 +252,11 @@ def read_recording(path: str | Path, joints: Sequence[str] | None, options: Reco
             f"(they name {', '.join(joint_series.names)})"
         )
     if types.get(measure.source) == CALIBRATION_DATA:
-        data = Dataset(chain, joint_series.columns(chain), measure.points)
+        q = joint_series.columns(chain)
+        if np.isnan(q).any():
+            row = int(np.flatnonzero(np.isnan(q).any(axis=1))[0])
+            raise DataError(f"{path}: CalibrationData message {row + 1} lacks a chain joint ({', '.join(chain)})")
+        data = Dataset(chain, q, measure.points)
         return Recording(data, joint_series.received, measure.source)
     data, times = segment_poses(joint_series, chain, measure, options)
     return Recording(data, times, measure.source, tuple(_clock_warning(joint_series, measure, options)))
