@@ -104,6 +104,18 @@ def test_bare_storage_files_read_as_their_folder(session: Recorded) -> None:
         np.testing.assert_array_equal(alone.points, folder.points)
 
 
+@pytest.mark.parametrize("compression", ["file", "message"])
+def test_compressed_recordings(session: Recorded, compression: str, tmp_path: Path) -> None:
+    """A zstd-compressed rosbag2 (per file or per message) gives the poses of an uncompressed one."""
+    path = tmp_path / f"zstd_{compression}"
+    reference = write_recording(
+        path, session.truth, session.poses[:6], "sqlite3", Session(compression=compression), seed=2
+    )
+    data = read_recording(path, session.robot.joint_names, RecordingOptions()).data
+    assert np.abs(data.q - session.poses[:6]).max() < 1e-4
+    assert np.abs(data.points - reference.points).max() < 3e-5
+
+
 def test_no_joint_states_is_refused(session: Recorded, tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
     path = tmp_path / "no_joints"
     write_recording(path, session.truth, session.poses[:5], "mcap", Session(joint_topic=None), seed=2)

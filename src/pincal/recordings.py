@@ -255,7 +255,8 @@ def read_recording(path: str | Path, joints: Sequence[str] | None, options: Reco
         q = joint_series.columns(chain)
         if np.isnan(q).any():
             row = int(np.flatnonzero(np.isnan(q).any(axis=1))[0])
-            raise DataError(f"{path}: CalibrationData message {row + 1} lacks a chain joint ({', '.join(chain)})")
+            joints = ", ".join(chain)
+            raise DataError(f"{path}: CalibrationData message {row + 1} lacks a chain joint ({joints})")
         data = Dataset(chain, q, measure.points)
         return Recording(data, joint_series.received, measure.source)
     data, times = segment_poses(joint_series, chain, measure, options)

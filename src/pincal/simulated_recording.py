@@ -37,6 +37,7 @@ class Session:
         tcp_topic: where the controller's own TCP pose is published (``PoseStamped``), or None.
         tf_child: the tracker publishes its point on ``/tf`` instead, as the transform from
             ``tracker`` to this frame (rotation identity), or None.
+        compression: a rosbag2's zstd compression, ``file`` or ``message``, or None.
     """
 
     hold: float = 1.0
@@ -50,6 +51,7 @@ class Session:
     measure_topic: str | None = "/tracker/point"
     tcp_topic: str | None = None
     tf_child: str | None = None
+    compression: str | None = None
 
 
 class Trajectory:
@@ -85,7 +87,7 @@ class Trajectory:
 class _Bag:
     """A recording being written: connections by topic, messages serialized for its format."""
 
-    def __init__(self, path: Path, storage: str) -> None:
+    def __init__(self, path: Path, storage: str, compression: str | None = None) -> None:
         from rosbags.typesys import Stores, get_typestore
 
         self.ros1 = storage == "ros1"
@@ -104,6 +106,10 @@ class _Bag:
 
             plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
             self.writer = Writer(path, version=9, storage_plugin=plugin)
+            if compression is not None:
+                from rosbags.rosbag2 import CompressionFormat, CompressionMode
+
+                self.writer.set_compression(CompressionMode[compression.upper()], CompressionFormat.ZSTD)
         self.connections: dict[str, Any] = {}
         self.messages: list[tuple[int, str, Any]] = []
 
@@ -240,7 +246,7 @@ def write_recording(
     path_t = Trajectory(
         np.asarray(poses, dtype=float), session.hold, rng.uniform(*session.move, len(poses) - 1)
     )
-    bag = _Bag(Path(path), storage)
+    bag = _Bag(Path(path), storage, session.compression)
     if session.joint_topic is not None:
         _joint_messages(bag, path_t, truth.robot.joint_names, session, rng)
     noise = _tracker_messages(bag, path_t, truth, session, rng)
