@@ -264,3 +264,34 @@ def test_calibration_data_snapshots_are_one_pose_each(session: Recorded, tmp_pat
     data = read_recording(path, session.robot.joint_names, RecordingOptions()).data
     np.testing.assert_array_equal(data.q, q)
     np.testing.assert_array_equal(data.points, points)
+
+
+def test_compensate_a_recorded_program(session: Recorded, tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    """A program run and recorded compensates as the CSV of its commands does."""
+    fit = tmp_path / "cal.urdf"
+    code, _, err = run(
+        capsys, "calibrate", "ur5", session.csv, "-o", fit, "--extend", "none", "--nested", "no"
+    )
+    assert code == 0, err
+    program = tmp_path / "program.csv"
+    with open(program, "w", newline="") as fh:
+        writer = csv.writer(fh)
+        writer.writerow(session.robot.joint_names)
+        writer.writerows(session.poses[:10].tolist())
+    outputs = {}
+    for name, source in (("csv", program), ("recording", session.paths["mcap"])):
+        outputs[name] = tmp_path / f"{name}_compensated.csv"
+        code, _, err = run(capsys, "compensate", "ur5", fit, source, "-o", outputs[name])
+        assert code == 0, err
+    _, from_csv = _rows_of(outputs["csv"])
+    _, from_recording = _rows_of(outputs["recording"])
+    assert len(from_recording) == N_POSES
+    assert np.abs(from_recording[:10] - from_csv).max() < 1e-6
+
+
+def _rows_of(path: Path) -> tuple[list[str], np.ndarray]:
+    """A compensated program's joint columns (its status column dropped)."""
+    with open(path) as fh:
+        rows = list(csv.reader(fh))
+    keep = [k for k, name in enumerate(rows[0]) if name != "status"]
+    return [rows[0][k] for k in keep], np.array([[float(r[k]) for k in keep] for r in rows[1:]])

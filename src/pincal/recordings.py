@@ -261,3 +261,31 @@ def read_recording(path: str | Path, joints: Sequence[str] | None, options: Reco
         return Recording(data, joint_series.received, measure.source)
     data, times = segment_poses(joint_series, chain, measure, options)
     return Recording(data, times, measure.source, tuple(_clock_warning(joint_series, measure, options)))
+
+
+def read_static_joints(path: str | Path, joints: Sequence[str], options: RecordingOptions) -> np.ndarray:
+    """The joint values (N, n) [rad or m] of a recording's static poses, no measurement needed
+    (a program run and recorded, for :func:`pincal.compensate.compensate_program`).
+
+    Raises:
+        DataError: no joint states on the joint topic, a chain joint never named, no static pose.
+    """
+    path = Path(path)
+    with open_recording(path) as reader:
+        if topic_types(reader).get(options.joint_topic) != JOINT_STATE:
+            raise DataError(f"{path}: no sensor_msgs/JointState on {options.joint_topic}: give --joint-topic")
+        series = read_joints(reader, options.joint_topic)
+    missing = [j for j in joints if j not in series.names]
+    if missing:
+        raise DataError(f"{path}: the joint states never name {', '.join(missing)}")
+    q_all = series.columns(tuple(joints))
+    known = ~np.isnan(q_all).any(axis=1)
+    times, q = series.times[known], q_all[known]
+    trim = TRIM * options.duration
+    segments = static_segments(times, q, options.band, options.duration) if len(times) else []
+    poses = [q[(times >= start + trim) & (times <= end - trim)].mean(axis=0) for start, end in segments]
+    if not poses:
+        raise DataError(
+            f"{path}: no static pose of {options.duration:g} s with the joints within {options.band:g}"
+        )
+    return np.array(poses)

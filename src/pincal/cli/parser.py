@@ -159,6 +159,7 @@ def _add_compensate(sub: Any) -> None:
     comp.add_argument("--task", choices=["pose", "position"], help="default: pose after pose data")
     comp.add_argument("--degrees", action="store_true", help="revolute joint values in degrees (in and out)")
     comp.add_argument("--units", choices=sorted(UNITS), default="m", help="unit of x,y,z targets, prismatic")
+    add_recording_options(comp)
     _add_force(comp)
 
 
