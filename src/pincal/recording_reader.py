@@ -35,6 +35,21 @@ TF = "tf2_msgs/msg/TFMessage"
 CALIBRATION_DATA = "robot_calibration_msgs/msg/CalibrationData"
 #: Message types that carry a measurement, one per message.
 MEASURE_TYPES = (POINT, POSE, TRANSFORM, CALIBRATION_DATA)
+#: robot_calibration's messages (robot_calibration_msgs), for recordings that hold no definitions.
+CALIBRATION_MSGS = {
+    "robot_calibration_msgs/msg/CameraParameter": "string name\nfloat64 value\n",
+    "robot_calibration_msgs/msg/ExtendedCameraInfo": (
+        "sensor_msgs/CameraInfo camera_info\nrobot_calibration_msgs/CameraParameter[] parameters\n"
+    ),
+    "robot_calibration_msgs/msg/Observation": (
+        "string sensor_name\ngeometry_msgs/PointStamped[] features\n"
+        "robot_calibration_msgs/ExtendedCameraInfo ext_camera_info\n"
+        "sensor_msgs/PointCloud2 cloud\nsensor_msgs/Image image\n"
+    ),
+    CALIBRATION_DATA: (
+        "sensor_msgs/JointState joint_states\nrobot_calibration_msgs/Observation[] observations\n"
+    ),
+}
 
 
 def is_recording(path: str | Path) -> bool:
@@ -87,18 +102,21 @@ class MeasureSeries:
 @contextmanager
 def open_recording(path: Path) -> Iterator[Any]:
     """An open ``rosbags`` reader of any recording kind (message types from the recording, else
-    ROS 2 Humble's).
+    ROS 2 Humble's and robot_calibration's).
 
     Raises:
         DataError: the path is missing or not a readable recording.
     """
     from rosbags.highlevel import AnyReader, AnyReaderError
-    from rosbags.typesys import Stores, get_typestore
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
     if not path.exists():
         raise DataError(f"{path}: no such recording")
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    for name, text in CALIBRATION_MSGS.items():
+        store.register(get_types_from_msg(text, name))
     try:
-        reader = AnyReader([path], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
+        reader = AnyReader([path], default_typestore=store)
         reader.open()
     except (AnyReaderError, OSError, ValueError, KeyError) as exc:
         raise DataError(f"{path}: not a readable ROS recording ({exc})") from None
