@@ -295,3 +295,22 @@ def _rows_of(path: Path) -> tuple[list[str], np.ndarray]:
         rows = list(csv.reader(fh))
     keep = [k for k, name in enumerate(rows[0]) if name != "status"]
     return [rows[0][k] for k in keep], np.array([[float(r[k]) for k in keep] for r in rows[1:]])
+
+
+def test_recording_options_with_a_csv_are_said_ignored(session: Recorded, capsys) -> None:  # type: ignore[no-untyped-def]
+    code, _, err = run(
+        capsys,
+        "calibrate",
+        "ur5",
+        session.csv,
+        "--joint-topic",
+        "/arm/joint_states",
+        "--extend",
+        "none",
+        "--nested",
+        "no",
+    )
+    assert code == 0, err
+    assert "ignored" in err and "--joint-topic (ROS recordings only)" in err
+    code, _, err = run(capsys, "calibrate", "ur5", session.csv, "--extend", "none", "--nested", "no")
+    assert code == 0 and "ROS recordings only" not in err

@@ -23,7 +23,7 @@ from ..point_files import read_socket_folder
 from ..recording_reader import is_recording
 from ..robots import BUNDLED, Robot, bundled_urdf, load_robot
 from .past_tip import check_past_tip
-from .recording_data import recording_data
+from .recording_data import recording_data, unused_recording_options
 
 if TYPE_CHECKING:
     from ..calibration import Calibration
@@ -181,6 +181,7 @@ def check_applicable(args: argparse.Namespace, data: Dataset) -> None:
         ignored.append("--quaternion-order (the data has no quaternion)")
     if args.instrument_frame == "base" and kind in ("distance", "points"):
         ignored.append(f"--instrument-frame base ({kind} data needs no registration)")
+    ignored += unused_recording_options(args)
     if ignored:
         warn(args, f"ignored for {kind} data: " + "; ".join(ignored))
 

@@ -11,6 +11,16 @@ from ..options import UNITS
 from .numeric import real
 from .values import vector3
 
+#: The recording options' defaults (said as ignored when given and no input is a recording).
+DEFAULTS: dict[str, str | float | None] = {
+    "joint_topic": "/joint_states",
+    "measure_topic": None,
+    "measure_frame": None,
+    "time_offset": 0.0,
+    "static_band": 1e-4,
+    "static_time": 0.5,
+}
+
 
 def band(text: str) -> float:
     """``--static-band`` [rad or m]: above 0, at most 1."""
@@ -30,19 +40,30 @@ def offset(text: str) -> float:
 def add_recording_options(cmd: argparse.ArgumentParser) -> None:
     """How a ROS recording given as DATA is read (ignored for a CSV)."""
     group = cmd.add_argument_group("ROS recordings (rosbag2 folder, .mcap, .db3 or ROS 1 .bag as DATA)")
-    group.add_argument("--joint-topic", default="/joint_states", help="the sensor_msgs/JointState topic")
+    group.add_argument(
+        "--joint-topic", default=DEFAULTS["joint_topic"], help="the sensor_msgs/JointState topic"
+    )
     group.add_argument(
         "--measure-topic", help="the Point-, Pose- or TransformStamped topic (default: the only one)"
     )
     group.add_argument("--measure-frame", metavar="PARENT:CHILD", help="measure this /tf transform")
     group.add_argument(
-        "--time-offset", type=offset, default=0.0, help="added to the measurement's stamps [s] (default 0)"
+        "--time-offset",
+        type=offset,
+        default=DEFAULTS["time_offset"],
+        help="added to the measurement's stamps [s] (default 0)",
     )
     group.add_argument(
-        "--static-band", type=band, default=1e-4, help="a joint's range within a static pose [rad] (1e-4)"
+        "--static-band",
+        type=band,
+        default=DEFAULTS["static_band"],
+        help="a joint's range within a static pose [rad] (1e-4)",
     )
     group.add_argument(
-        "--static-time", type=seconds, default=0.5, help="how long a static pose lasts at least [s] (0.5)"
+        "--static-time",
+        type=seconds,
+        default=DEFAULTS["static_time"],
+        help="how long a static pose lasts at least [s] (0.5)",
     )
 
 

@@ -8,7 +8,9 @@ from pathlib import Path
 
 from ..data import Dataset
 from ..errors import DataError
+from ..recording_reader import is_recording
 from ..recordings import Recording, RecordingOptions, read_recording
+from .recording_args import DEFAULTS
 
 
 def recording_options(args: argparse.Namespace) -> RecordingOptions:
@@ -44,3 +46,12 @@ def read_poses(path: Path, joints: tuple[str, ...] | None, args: argparse.Namesp
 def recording_data(path: Path, joints: tuple[str, ...], args: argparse.Namespace) -> Dataset:
     """The poses of a recording for the chain's ``joints``, as a CSV would give them."""
     return read_poses(path, joints, args).data
+
+
+def unused_recording_options(args: argparse.Namespace) -> list[str]:
+    """The recording options given when neither DATA nor ``--test`` is a recording."""
+    inputs = [p for p in (args.data, getattr(args, "test", None)) if p is not None]
+    if any(is_recording(p) for p in inputs):
+        return []
+    given = [name for name, default in DEFAULTS.items() if getattr(args, name, default) != default]
+    return [f"--{name.replace('_', '-')} (ROS recordings only)" for name in given]
