@@ -150,8 +150,10 @@ def test_programmed_positions(setting, tmp_path: Path, capsys) -> None:  # type:
     data, report = tmp_path / "prog.csv", tmp_path / "iso.json"
     columns = {f"{a}_cmd": programmed[:, k] * 1e3 for k, a in enumerate("xyz")}
     write_visits(data, robot.joint_names, labels, q, attained, columns)
-    code, _, err = run(capsys, "accuracy", "ur5", data, "--units", "mm", "--report", report)
+    plot = tmp_path / "iso.png"
+    code, _, err = run(capsys, "accuracy", "ur5", data, "--units", "mm", "--report", report, "--plot", plot)
     assert code == 0, err
+    assert plot.read_bytes().startswith(b"\x89PNG")
     iso = json.loads(report.read_text())["iso9283"]
     assert iso["command"] == "programmed"
     expected = reference(labels, programmed, attained)

@@ -33,8 +33,8 @@ def _panel(ax: Any, offsets: np.ndarray, to_command: np.ndarray, rp: float, axis
     ax.grid(alpha=0.3)
 
 
-def plot_accuracy(result: AccuracyResult, path: str | Path) -> Path:
-    """Write a PNG with one column per pose: the attained positions around their barycentre in the
+def accuracy_png(result: AccuracyResult) -> bytes:
+    """A PNG with one column per pose: the attained positions around their barycentre in the
     base X-Y and X-Z planes [mm], RP's circle, and where the commanded position lies.
 
     Raises:
@@ -56,7 +56,12 @@ def plot_accuracy(result: AccuracyResult, path: str | Path) -> Path:
     axes[0, 0].legend(fontsize=7)
     fig.suptitle(f"ISO 9283, commanded by the {result.command.replace('_', ' ')} (circle: RP)", fontsize=10)
     fig.tight_layout()
-    out, png = Path(path), io.BytesIO()
+    png = io.BytesIO()
     fig.savefig(png, format="png", dpi=100)
-    atomic_write(out, png.getvalue())
-    return out
+    return png.getvalue()
+
+
+def plot_accuracy(result: AccuracyResult, path: str | Path) -> Path:
+    """Write :func:`accuracy_png` to ``path`` (whole or not at all); returns the path."""
+    atomic_write(path, accuracy_png(result))
+    return Path(path)

@@ -13,7 +13,7 @@ import pinocchio as pin
 from ..calibrated_robot import CalibratedRobot, load_calibration
 from ..data import UNITS, Dataset
 from ..errors import DataError
-from ..files import atomic_write
+from ..files import atomic_write_many
 from ..iso9283 import AccuracyResult, iso9283, too_few_cycles
 from ..recording_reader import is_recording
 from ..robots import Robot, load_robot
@@ -84,6 +84,11 @@ def run(args: argparse.Namespace) -> int:
     if few is not None:
         warn(args, few)
     print(result.table())
+    files: list[tuple[str | Path, str | bytes]] = []
+    if args.plot is not None:
+        from ..accuracy_plot import accuracy_png
+
+        files.append((args.plot, accuracy_png(result)))
     if args.report is not None:
         report = {
             "robot": args.robot,
@@ -91,10 +96,8 @@ def run(args: argparse.Namespace) -> int:
             "calibration": None if args.calibration is None else str(args.calibration),
             "iso9283": result.to_dict(),
         }
-        atomic_write(args.report, json.dumps(report, indent=2) + "\n")
-        print(f"report written to {args.report}")
-    if args.plot is not None:
-        from ..accuracy_plot import plot_accuracy
-
-        print(f"plot written to {plot_accuracy(result, Path(args.plot))}")
+        files.append((args.report, json.dumps(report, indent=2) + "\n"))
+    atomic_write_many(files)  # every output or none
+    for path, _ in files:
+        print(f"written to {path}")
     return 0
