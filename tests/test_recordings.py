@@ -314,3 +314,15 @@ def test_recording_options_with_a_csv_are_said_ignored(session: Recorded, capsys
     assert "ignored" in err and "--joint-topic (ROS recordings only)" in err
     code, _, err = run(capsys, "calibrate", "ur5", session.csv, "--extend", "none", "--nested", "no")
     assert code == 0 and "ROS recordings only" not in err
+
+
+def test_poses_without_a_measurement_are_left_out_and_said(session: Recorded, tmp_path: Path) -> None:
+    """The tracker loses the reflector at two poses: the others are read, the two are warned of."""
+    path = tmp_path / "dropouts"
+    write_recording(path, session.truth, session.poses[:8], "mcap", Session(dropouts=(2, 5)), seed=2)
+    recording = read_recording(path, session.robot.joint_names, RecordingOptions())
+    kept = [k for k in range(8) if k not in (2, 5)]
+    assert np.abs(recording.data.q - session.poses[kept]).max() < 1e-4
+    assert any("2 static segment(s) without a measurement" in w for w in recording.warnings), (
+        recording.warnings
+    )

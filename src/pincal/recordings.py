@@ -12,7 +12,7 @@ robot_calibration's ``CalibrationData`` snapshots are one pose each, without seg
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -120,8 +120,9 @@ def _clock_offset(times: np.ndarray, received: np.ndarray) -> float:
 
 def segment_poses(
     joints: JointSeries, chain: tuple[str, ...], measure: MeasureSeries, options: RecordingOptions
-) -> tuple[Dataset, np.ndarray]:
-    """The static poses of the joint states, with the measurement averaged over each.
+) -> tuple[Dataset, np.ndarray, int]:
+    """The static poses of the joint states, with the measurement averaged over each; their
+    times [s] (the middle of each segment), and how many static segments had no measurement.
 
     Raises:
         DataError: no static segment, or no measurement in any.
@@ -136,7 +137,7 @@ def segment_poses(
         trim = TRIM * options.duration
         inside = (times >= start + trim) & (times <= end - trim)
         seen = (measured_at >= start + trim) & (measured_at <= end - trim)
-        if not seen.any():
+        if not seen.any() or not inside.any():
             continue
         quat = None if measure.quaternions is None else mean_quaternion(measure.quaternions[seen])
         points = measure.points[seen]
@@ -150,9 +151,11 @@ def segment_poses(
             "check --static-band, --static-time and --time-offset"
         )
     quats = None if rows[0][2] is None else np.array([r[2] for r in rows])
-    data = Dataset(chain, np.array([r[0] for r in rows]), np.array([r[1] for r in rows]), quats)
-    data = replace(data, spread=np.array([r[3] for r in rows]))
-    return data, np.array([r[4] for r in rows])
+    spread = np.array([r[3] for r in rows])
+    data = Dataset(
+        chain, np.array([r[0] for r in rows]), np.array([r[1] for r in rows]), quats, spread=spread
+    )
+    return data, np.array([r[4] for r in rows]), len(segments) - len(rows)
 
 
 def _measure_source(types: dict[str, str], options: RecordingOptions) -> tuple[str, str]:
@@ -259,8 +262,11 @@ def read_recording(path: str | Path, joints: Sequence[str] | None, options: Reco
             raise DataError(f"{path}: CalibrationData message {row + 1} lacks a chain joint ({joints})")
         data = Dataset(chain, q, measure.points)
         return Recording(data, joint_series.received, measure.source)
-    data, times = segment_poses(joint_series, chain, measure, options)
-    return Recording(data, times, measure.source, tuple(_clock_warning(joint_series, measure, options)))
+    data, times, unseen = segment_poses(joint_series, chain, measure, options)
+    warnings = _clock_warning(joint_series, measure, options)
+    if unseen:
+        warnings.append(f"{unseen} static segment(s) without a measurement on {measure.source} left out")
+    return Recording(data, times, measure.source, tuple(warnings))
 
 
 def read_static_joints(path: str | Path, joints: Sequence[str], options: RecordingOptions) -> np.ndarray:

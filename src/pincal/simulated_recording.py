@@ -38,6 +38,7 @@ class Session:
         tf_child: the tracker publishes its point on ``/tf`` instead, as the transform from
             ``tracker`` to this frame (rotation identity), or None.
         compression: a rosbag2's zstd compression, ``file`` or ``message``, or None.
+        dropouts: the poses (indices) at which the tracker loses the reflector and publishes nothing.
     """
 
     hold: float = 1.0
@@ -52,6 +53,7 @@ class Session:
     tcp_topic: str | None = None
     tf_child: str | None = None
     compression: str | None = None
+    dropouts: tuple[int, ...] = ()
 
 
 class Trajectory:
@@ -177,7 +179,9 @@ def _tracker_messages(
     noise = rng.normal(0.0, session.noise, (len(times), 3))
     points = truth.target(path.at(times))[0] + noise
     types = bag.store.types
-    for t, p in zip(times, points):
+    rest = np.searchsorted(path.edges, times, side="right") - 1
+    lost = np.isin(rest, [2 * k for k in session.dropouts])
+    for t, p in zip(times[~lost], points[~lost]):
         header = bag.header(t + session.tracker_clock, "tracker")
         if session.tf_child is not None:
             bag.add(t + 0.002, "/tf", _tf_message(bag, header, session.tf_child, p))
