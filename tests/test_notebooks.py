@@ -143,3 +143,20 @@ def test_compensate_notebook_lands_within_the_held_out_error() -> None:
     compensated, held_out, uncompensated = (float(v) for v in found[0])
     assert compensated <= 1.5 * held_out, (compensated, held_out)
     assert uncompensated > 1.0, uncompensated
+
+
+RECORDINGS = NOTEBOOKS_DIR / "06_recordings_and_iso9283.ipynb"
+ISO_LINE = re.compile(
+    r"ISO 9283 AP max: nominal ([0-9.]+) mm, calibrated ([0-9.]+) mm; "
+    r"RP max: nominal ([0-9.]+) mm, calibrated ([0-9.]+) mm"
+)
+
+
+def test_recordings_notebook_lowers_ap_and_keeps_rp() -> None:
+    """Issue 34: a calibration from a recording lowers ISO 9283's AP five times or more on the
+    simulated robot, and leaves RP (the robot's own scatter) as it is."""
+    found = ISO_LINE.findall(output_text(executed(RECORDINGS)))
+    assert len(found) == 1, "the recordings notebook must print its 'ISO 9283 AP max' line once"
+    ap_nominal, ap_calibrated, rp_nominal, rp_calibrated = (float(v) for v in found[0])
+    assert ap_nominal >= 5 * ap_calibrated, (ap_nominal, ap_calibrated)
+    assert abs(rp_nominal - rp_calibrated) <= 0.002, (rp_nominal, rp_calibrated)

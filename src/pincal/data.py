@@ -46,6 +46,8 @@ class Dataset:
         point_rows: for a folder of ``hole_<name>.csv`` files (one per point, read one after the
             other), the row number of each file's first row, so that a row is named by its file
             (:meth:`row_name`); else None.
+        spread: (N,) for poses averaged over a static segment of a recording, the measurement's
+            spread over it (RMS per axis of its standard deviation) [m], else None.
     """
 
     joint_names: tuple[str, ...]
@@ -56,6 +58,7 @@ class Dataset:
     labels: np.ndarray | None = None
     point_names: tuple[str, ...] = ()
     point_rows: np.ndarray | None = None
+    spread: np.ndarray | None = None
 
     @property
     def row_numbers(self) -> np.ndarray:
@@ -100,16 +103,9 @@ class Dataset:
     def subset(self, index: Sequence[int] | np.ndarray) -> Dataset:
         """The poses at ``index`` (row numbers are kept)."""
         idx = np.asarray(index)
-        quats = None if self.quaternions is None else self.quaternions[idx]
-        labels = None if self.labels is None else self.labels[idx]
-        return replace(
-            self,
-            q=self.q[idx],
-            points=self.points[idx],
-            quaternions=quats,
-            rows=self.row_numbers[idx],
-            labels=labels,
-        )
+        per_pose = ("q", "points", "quaternions", "labels", "spread")
+        chosen = {name: getattr(self, name)[idx] for name in per_pose if getattr(self, name) is not None}
+        return replace(self, rows=self.row_numbers[idx], **chosen)
 
     def split(self, fraction: float, seed: int = 0) -> tuple[Dataset, Dataset]:
         """Random (fit, held-out) split, ``fraction`` of the poses held out."""

@@ -20,8 +20,10 @@ from ..fixed_points import parse_point_distances
 from ..options import ROTATION_WEIGHT
 from ..plausibility import Verdict, judge_calibration
 from ..point_files import read_socket_folder
+from ..recording_reader import is_recording
 from ..robots import BUNDLED, Robot, bundled_urdf, load_robot
 from .past_tip import check_past_tip
+from .recording_data import recording_data, unused_recording_options
 
 if TYPE_CHECKING:
     from ..calibration import Calibration
@@ -69,7 +71,7 @@ def chain(args: argparse.Namespace) -> Robot:
             f"--lock {','.join(unknown)}: not joints between the base and {chain.tip} "
             f"({', '.join(chain.joint_names)})"
         )
-    if not Path(args.data).is_dir():  # a folder of MUKCa files has no header to check
+    if not Path(args.data).is_dir() and not is_recording(args.data):  # no CSV header to check
         check_columns(csv_columns(args.data), chain, args.lock)
     if not args.lock:
         return chain
@@ -133,8 +135,10 @@ def warn(args: argparse.Namespace, text: str) -> None:
 
 
 def load_data(path: Path, robot: Robot, args: argparse.Namespace) -> Dataset:
-    """Read a measurement CSV and check its joint values and units against the robot."""
-    if path.is_dir():
+    """Read a measurement CSV (or a ROS recording) and check its joint values and units against the robot."""
+    if is_recording(path):
+        data = recording_data(path, robot.joint_names, args)
+    elif path.is_dir():
         if args.degrees:
             raise DataError(f"{path}: MUKCa's files hold radians: drop --degrees")
         data = read_socket_folder(path, robot.joint_names, robot.prismatic)
@@ -155,7 +159,8 @@ def load_data(path: Path, robot: Robot, args: argparse.Namespace) -> Dataset:
         warn(args, f"{path}: {beyond} joint value(s) beyond the URDF limits, {limits}")
     if data.labels is None:  # fixed points have no measured positions to compare
         check_scale(robot, data, args.units, args.degrees)
-        check_past_tip(robot, data, path, args, robot_options(args))
+        if not is_recording(path):  # past-tip columns are a CSV's
+            check_past_tip(robot, data, path, args, robot_options(args))
     elif args.degrees and small_angles(robot, data):
         warn(
             args,
@@ -176,6 +181,7 @@ def check_applicable(args: argparse.Namespace, data: Dataset) -> None:
         ignored.append("--quaternion-order (the data has no quaternion)")
     if args.instrument_frame == "base" and kind in ("distance", "points"):
         ignored.append(f"--instrument-frame base ({kind} data needs no registration)")
+    ignored += unused_recording_options(args)
     if ignored:
         warn(args, f"ignored for {kind} data: " + "; ".join(ignored))
 

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+import numpy as np
+
 from ..errors import DataError
 from ..robots import load_robot
 from ..urdf_writer import sidecar_path
@@ -15,6 +17,9 @@ def run(args: argparse.Namespace) -> int:
     from ..calibrated_robot import load_calibration
     from ..compensate import compensate_program, write_program
     from ..data import Targets, csv_columns, read_program
+    from ..recording_reader import is_recording
+    from ..recordings import read_static_joints
+    from .recording_data import recording_options
 
     inputs = {
         "program": args.program,
@@ -26,8 +31,13 @@ def run(args: argparse.Namespace) -> int:
     description = {k: v for k, v in options.items() if k != "kinematics"}  # a YAML's base robot
     cal = load_calibration(args.calibration, nominal=args.robot, **description)
     nominal = load_robot(args.robot, tip=cal.robot.tip, joints=cal.robot.joint_names, **options)
-    program = read_program(args.program, nominal, args.degrees, args.units)
-    header = csv_columns(args.program)
+    program: np.ndarray | Targets
+    if is_recording(args.program):  # a program run and recorded: its static poses are the commands
+        program = read_static_joints(args.program, nominal.joint_names, recording_options(args))
+        print(f"{args.program}: {len(program)} static poses")
+    else:
+        program = read_program(args.program, nominal, args.degrees, args.units)
+    header = [] if is_recording(args.program) else csv_columns(args.program)
     targets = [c for c in ("x", "y", "z", "qw", "qx", "qy", "qz") if c in header]
     if not isinstance(program, Targets) and targets:
         warn(

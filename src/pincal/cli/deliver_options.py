@@ -1,8 +1,10 @@
-"""Options on what is delivered and judged: ``--noise`` and ``--geometry``."""
+"""Options on what is delivered and judged: ``--noise``, ``--geometry``, ``diagnose --params``."""
 
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
+from typing import Any
 
 from .numeric import real
 
@@ -32,4 +34,15 @@ def add_geometry(cmd: argparse.ArgumentParser) -> None:
         help="with an effect: 'first' (default) keeps the written URDF the best URDF alone and lets the "
         "sidecar's effect complete it; 'joint' fits geometry and effect together (best with the sidecar; "
         "the URDF alone is then worse, and the table says by how much)",
+    )
+
+
+def add_baseline_params(cmd: argparse.ArgumentParser, parameters: Callable[[str], Any]) -> None:
+    """``diagnose --params``: the geometric baseline's parameters, chosen as ``calibrate`` does."""
+    cmd.add_argument(
+        "--params",
+        type=parameters,
+        default="auto",
+        metavar="all|auto|NAME,...|@FILE",
+        help="the geometric baseline's parameters: 'auto' (default, as pincal calibrate), 'all' or names",
     )

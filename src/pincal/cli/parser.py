@@ -19,9 +19,10 @@ from ..options import (
     THRESHOLD,
     UNITS,
 )
-from .deliver_options import add_geometry, add_noise
+from .deliver_options import add_baseline_params, add_geometry, add_noise
 from .help_groups import group_options, report_option, version
 from .numeric import count, folds, fraction, height, reach, rotation_weight, seed, sigmas, threads
+from .recording_args import add_accuracy, add_extract, add_recording_options
 from .template import add_template
 from .values import mapping, name_list, parameters, payload, vector3, vectors3
 
@@ -47,6 +48,8 @@ def build_parser() -> argparse.ArgumentParser:
     for add in (_add_calibrate, _add_diagnose, _add_demo, _add_tcp, _add_compensate, _add_plan, _add_twists):
         add(sub)
     add_template(sub, _add_robot_options, _add_force)
+    add_extract(sub)
+    add_accuracy(sub)
     group_options(parser)  # --help in groups (data, model, automatic choice, output), docs cited
     return parser
 
@@ -107,13 +110,7 @@ def _add_diagnose(sub: Any) -> None:
     diag.add_argument("--plots", type=Path, metavar="DIR", help="write a PNG of the named cause here")
     diag.add_argument("--folds", type=folds, default=5, help="folds of the cross-validation (2 or more)")
     diag.add_argument("--seed", type=seed, default=0, help="seed of the folds")
-    diag.add_argument(
-        "--params",
-        type=parameters,
-        default="auto",
-        metavar="all|auto|NAME,...|@FILE",
-        help="the geometric baseline's parameters: 'auto' (default, as pincal calibrate), 'all' or names",
-    )
+    add_baseline_params(diag, parameters)
     _add_force(diag)
 
 
@@ -161,6 +158,7 @@ def _add_compensate(sub: Any) -> None:
     comp.add_argument("--task", choices=["pose", "position"], help="default: pose after pose data")
     comp.add_argument("--degrees", action="store_true", help="revolute joint values in degrees (in and out)")
     comp.add_argument("--units", choices=sorted(UNITS), default="m", help="unit of x,y,z targets, prismatic")
+    add_recording_options(comp)
     _add_force(comp)
 
 
@@ -268,8 +266,8 @@ def _add_data_options(cmd: argparse.ArgumentParser) -> None:
     cmd.add_argument(
         "data",
         type=Path,
-        help="measurement CSV (see the documentation: docs/formats.md; 'pincal template' writes its "
-        "header), or a folder of hole_<name>.csv files",
+        help="measurement CSV (docs/formats.md; 'pincal template' writes its header), a folder of "
+        "hole_<name>.csv files, or a ROS recording (docs/recordings.md)",
     )
     cmd.add_argument("--tip", help="the measured frame (default: the robot's documented tip)")
     cmd.add_argument("--model", choices=MODELS, default="placements")
@@ -320,6 +318,7 @@ def _add_data_options(cmd: argparse.ArgumentParser) -> None:
         help="weight of orientation residuals for pose data [m/rad] (default 0.1: 1 mrad ~ 0.1 mm)",
     )
     _add_plausibility_options(cmd)
+    add_recording_options(cmd)
 
 
 def _add_plausibility_options(cmd: argparse.ArgumentParser) -> None:

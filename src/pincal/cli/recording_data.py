@@ -1,0 +1,57 @@
+"""A ROS recording given where a measurement CSV is accepted: its static poses as a
+:class:`pincal.data.Dataset`, read with the command's recording options."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from ..data import Dataset
+from ..errors import DataError
+from ..recording_reader import is_recording
+from ..recordings import Recording, RecordingOptions, read_recording
+from .recording_args import DEFAULTS
+
+
+def recording_options(args: argparse.Namespace) -> RecordingOptions:
+    """The :class:`pincal.recordings.RecordingOptions` of the command line."""
+    return RecordingOptions(
+        joint_topic=args.joint_topic,
+        measure_topic=args.measure_topic,
+        measure_frame=args.measure_frame,
+        time_offset=args.time_offset,
+        band=args.static_band,
+        duration=args.static_time,
+        orientation=getattr(args, "measure", None) == "pose",
+    )
+
+
+def read_poses(path: Path, joints: tuple[str, ...] | None, args: argparse.Namespace) -> Recording:
+    """The static poses of the recording at ``path``, its warnings kept for the end of the command.
+
+    Raises:
+        DataError: ``--degrees`` or ``--units mm`` (a recording holds radians and metres), or the
+            recording cannot give poses (:func:`pincal.recordings.read_recording`).
+    """
+    if getattr(args, "degrees", False) or getattr(args, "units", "m") != "m":
+        raise DataError(
+            f"{path}: a ROS recording holds radians and metres (REP 103): drop --degrees and --units"
+        )
+    recording = read_recording(path, joints, recording_options(args))
+    args.__dict__.setdefault("warnings", []).extend(f"{path}: {w}" for w in recording.warnings)
+    print(f"{path}: {len(recording.data)} static poses, measured on {recording.source}")
+    return recording
+
+
+def recording_data(path: Path, joints: tuple[str, ...], args: argparse.Namespace) -> Dataset:
+    """The poses of a recording for the chain's ``joints``, as a CSV would give them."""
+    return read_poses(path, joints, args).data
+
+
+def unused_recording_options(args: argparse.Namespace) -> list[str]:
+    """The recording options given when neither DATA nor ``--test`` is a recording."""
+    inputs = [p for p in (args.data, getattr(args, "test", None)) if p is not None]
+    if any(is_recording(p) for p in inputs):
+        return []
+    given = [name for name, default in DEFAULTS.items() if getattr(args, name, default) != default]
+    return [f"--{name.replace('_', '-')} (ROS recordings only)" for name in given]
