@@ -259,13 +259,10 @@ def read_csv(
 def joint_values(
     values: np.ndarray, degrees: bool, units: str, prismatic: Sequence[bool] | None
 ) -> np.ndarray:
-    """Joint columns as read -> radians and metres."""
-    q = values.copy()
-    prism = np.asarray(prismatic if prismatic is not None else [False] * q.shape[1], dtype=bool)
-    if degrees:
-        q[:, ~prism] = np.deg2rad(q[:, ~prism])
-    q[:, prism] *= UNITS[units]
-    return q
+    """Joint columns as read -> radians and metres (:func:`pincal.units.joints_from_file`)."""
+    from .units import joints_from_file
+
+    return joints_from_file(values, degrees, units, prismatic)
 
 
 def unit_quaternions(path: str | Path, quats: np.ndarray) -> np.ndarray:

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from .errors import RobotError
+from .inputs import note_input
 from .sandbox import run_limited
 
 if TYPE_CHECKING:
@@ -226,6 +227,8 @@ def xacro_to_urdf(
             memory=XACRO_MEMORY,
             what=f"cannot process xacro {path}",
         )
+    for include in [path, *includes]:  # outputs must not replace them (issue 33)
+        note_input(include, f"file {Path(include).name} the xacro includes")
     declared = _declared_args([path, *(Path(f) for f in includes)])
     unknown = sorted(set(xacro_args or {}) - declared)
     if unknown:

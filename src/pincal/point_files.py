@@ -8,13 +8,17 @@ column per chain joint [rad]; a folder of placements reads as one data set.
 
 from __future__ import annotations
 
+import io
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
+from . import files
 from .data import Dataset, joint_values, read_rows, read_table
 from .errors import DataError
+from .inputs import read_bytes
 
 
 def read_points_csv(
@@ -79,10 +83,7 @@ def read_socket_folder(
         )
     blocks, labels = [], []
     for k, path in enumerate(files):
-        try:
-            values = np.loadtxt(path, delimiter=",", ndmin=2, comments="#")
-        except (OSError, ValueError) as exc:
-            raise DataError(f"{path}: not a table of numbers ({exc})") from None
+        values = _socket_rows(path)
         if values.size == 0:
             raise DataError(f"{path} has no rows")
         if values.shape[1] != len(joint_names) or not np.all(np.isfinite(values)):
@@ -106,6 +107,18 @@ def read_socket_folder(
         point_names=names,
         point_rows=first,
     )
+
+
+def _socket_rows(path: Path) -> np.ndarray:
+    """The rows of one socket file: a regular file of at most :data:`pincal.files.MAX_INPUT_BYTES`,
+    read once (a link to ``/dev/zero`` or a named pipe is refused, issue 33)."""
+    text = read_bytes(path, "socket file", files.MAX_INPUT_BYTES).decode("utf-8", "replace")
+    try:
+        with warnings.catch_warnings():  # an empty file is said below, not warned of by NumPy
+            warnings.simplefilter("ignore", UserWarning)
+            return np.loadtxt(io.StringIO(text), delimiter=",", ndmin=2, comments="#")
+    except ValueError as exc:
+        raise DataError(f"{path}: not a table of numbers ({' '.join(str(exc).split())})") from None
 
 
 def _placements(

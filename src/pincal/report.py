@@ -7,7 +7,6 @@ rotation vector [mrad]) and ``tool.*`` the measured point or frame on the tip, b
 
 from __future__ import annotations
 
-import json
 from typing import Any
 
 import numpy as np
@@ -128,16 +127,9 @@ def report_json(
 ) -> str:
     """The report as JSON text (no NaN or infinity: those become null), with ``extra`` keys."""
 
-    def clean(obj: Any) -> Any:
-        if isinstance(obj, float) and not np.isfinite(obj):
-            return None
-        if isinstance(obj, dict):
-            return {k: clean(v) for k, v in obj.items()}
-        if isinstance(obj, list):
-            return [clean(v) for v in obj]
-        return obj
+    from .json_text import json_text  # issue 33: one writer of JSON for every output
 
-    return json.dumps(clean({**report_dict(cal, data, test), **extra}), indent=2) + "\n"
+    return json_text({**report_dict(cal, data, test), **extra})
 
 
 #: What the report says of fitted fixed-point data: each placement's errors, the misplaced rows.

@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import argparse
-import json
 
 import numpy as np
 
 from ..data import atomic_write
 from ..errors import DataError
+from ..json_text import json_text
 from ..pipeline import calibrate
 from ..selection import select_parameters
 from .common import (
@@ -75,6 +75,6 @@ def run(args: argparse.Namespace) -> int:
         print(f"plot written to {path}")
     if args.json is not None:
         out = {**result.to_dict(), "plausibility": verdict.to_dict()}
-        atomic_write(args.json, json.dumps(out, indent=2) + "\n")
+        atomic_write(args.json, json_text(out))
         print(f"written to {args.json}")
     return 0

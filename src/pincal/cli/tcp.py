@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import argparse
-import json
 
 import numpy as np
 
 from ..data import UNITS, atomic_write
 from ..errors import DataError, ImplausibleError
+from ..json_text import json_text
 from ..robots import load_robot
 from ..tool import calibrate_tool, read_flange_poses
 from ..tool_plausibility import judge_tool
@@ -57,7 +57,7 @@ def run(args: argparse.Namespace) -> int:
             "warnings": list(tool.warnings),
             "plausibility": verdict.to_dict(),
         }
-        atomic_write(args.json, json.dumps(result, indent=2) + "\n")
+        atomic_write(args.json, json_text(result))
         print(f"written to {args.json}")
     return 0
 
