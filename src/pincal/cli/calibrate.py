@@ -77,6 +77,11 @@ def run(args: argparse.Namespace) -> int:
             print(f"{args.robot} in ur_description's frames, from its default kinematics (nominal)")
     data = load_data(args.data, robot, args)
     test = load_data(args.test, robot, args) if args.test is not None else None
+    if test is not None and (test.labels is None) != (data.labels is None):  # issue 33
+        raise DataError(
+            f"--test {args.test} holds {test.measured} data and {args.data} {data.measured} data: "
+            "held-out poses are scored as the fit's, give a --test file of the same kind"
+        )
     check_applicable(args, data)
     if args.holdout is not None:
         data, test = data.split(args.holdout, args.seed)
