@@ -180,7 +180,7 @@ def check_scale(robot: Robot, data: Dataset, units: str = "m", degrees: bool = F
         return
     other = _other_angle_unit(robot, data, degrees)
     angles = None if other is None else spread(other)
-    if angles is not None and 1.0 / 3.0 < measured / angles < 3.0 and follows(other, data.points):
+    if other is not None and angles and 1.0 / 3.0 < measured / angles < 3.0 and follows(other, data.points):
         hint = (
             "the joint values look like radians read as degrees: drop --degrees"
             if degrees

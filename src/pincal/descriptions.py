@@ -256,7 +256,7 @@ def xacro_to_urdf(
             memory=XACRO_MEMORY,
             what=f"cannot process xacro {path}",
         )
-    for include in [path, *includes]:  # outputs must not replace them (issue 33)
+    for include in [str(path), *map(str, includes)]:  # outputs must not replace them (issue 33)
         note_input(include, f"file {Path(include).name} the xacro includes")
     declared = _declared_args([path, *(Path(f) for f in includes)])
     unknown = sorted(set(xacro_args or {}) - declared)

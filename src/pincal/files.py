@@ -124,6 +124,11 @@ def _read_stdin(what: str) -> bytes:
     return stream.read(MAX_INPUT_BYTES + 1).encode("utf-8")
 
 
+def kept_inputs() -> frozenset[str]:
+    """The names of the inputs read once whose text is kept (standard input, pipes)."""
+    return frozenset(_read_once)
+
+
 def forget_inputs() -> None:
     """Drop the kept texts of inputs read once (the command line does it when a command ends)."""
     _read_once.clear()

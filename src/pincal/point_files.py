@@ -16,7 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from . import files
-from .data import Dataset, joint_values, read_rows, read_table
+from .csv_table import read_columns
+from .data import Dataset, csv_columns, joint_values
 from .errors import DataError
 from .inputs import read_bytes
 
@@ -34,17 +35,14 @@ def read_points_csv(
     Raises:
         DataError: the file is missing or malformed, no ``point`` column, an empty point name.
     """
-    table = read_rows(Path(path))
-    what = f"every chain joint ({', '.join(joint_names)}) and point"
-    q = joint_values(read_table(path, joint_names, what, table=table), degrees, units, prismatic)
-    header, rows = table
-    if "point" not in header:
+    if "point" not in csv_columns(path):
         raise DataError(f"{path}: no 'point' column; fixed-point data names each row's point there")
-    at = header.index("point")
+    what = f"every chain joint ({', '.join(joint_names)}) and point"
+    values, points = read_columns(path, joint_names, what, text_column="point")  # streamed (issue 33)
+    q = joint_values(values, degrees, units, prismatic)
     names: dict[str, int] = {}
-    labels = np.empty(len(rows), dtype=int)
-    for r, row in enumerate(rows):
-        name = row[at].strip()  # read_table checked that every row has the header's fields
+    labels = np.empty(len(points), dtype=int)
+    for r, name in enumerate(points):
         if not name:
             raise DataError(f"{path}: data row {r + 1} has no point name in column 'point'")
         labels[r] = names.setdefault(name, len(names))

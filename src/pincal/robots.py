@@ -251,7 +251,7 @@ def load_robot(
         path = Path(name)
         if path.suffix.lower() not in URDF_SUFFIXES:
             raise RobotError(f"unknown robot {name!r}: give a .urdf path or one of {', '.join(BUNDLED)}")
-        if not path.is_file():
+        if not path.exists():
             raise RobotError(f"URDF file not found: {path}")
     text = robot_description(path, xacro_args, package_paths, kinematics)
     full, mimic = _parse_urdf(path, text if inertias is None else _with_inertias(text, inertias))

@@ -133,8 +133,8 @@ def _bug(exc: Exception) -> int:
     """One line saying that this is a bug (the traceback too, with ``PINCAL_TRACEBACK=1``)."""
     if os.environ.get("PINCAL_TRACEBACK"):
         _say("".join(traceback.format_exception(exc)).rstrip())
-    where = traceback.extract_tb(exc.__traceback__)[-1:] or [None]
-    at = "" if where[0] is None else f" at {os.path.basename(where[0].filename)}:{where[0].lineno}"
+    frames = traceback.extract_tb(exc.__traceback__)
+    at = f" at {os.path.basename(frames[-1].filename)}:{frames[-1].lineno}" if frames else ""
     what = " ".join(f"{type(exc).__name__}: {exc}".split())
     _say(f"pincal: bug: {what}{at} (an internal error, not your input: please report it with the command)")
     return 1
