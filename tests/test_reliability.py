@@ -499,7 +499,8 @@ def test_a_thousand_fixed_links_do_not_count_as_joints(tmp_path: Path) -> None:
 
 def test_the_block_by_block_fit_is_the_dense_fit(monkeypatch: pytest.MonkeyPatch) -> None:
     """With the thresholds of :mod:`pincal.chunked` lowered to a few hundred poses, the fit, its
-    standard deviations and its errors are those of the dense solver (to rounding)."""
+    standard deviations and its errors are those of the dense solver (to rounding); found on a
+    random subset, the identifiable set is the same and the fit's error within 1 %."""
     import pincal.chunked as chunked
 
     ur5 = pincal.load_robot("ur5")
@@ -508,9 +509,12 @@ def test_the_block_by_block_fit_is_the_dense_fit(monkeypatch: pytest.MonkeyPatch
     dense = pincal.calibrate(ur5, data, params="all", outliers=6.0)
     monkeypatch.setattr(chunked, "LARGE_POSES", 150)
     monkeypatch.setattr(chunked, "BLOCK_POSES", 70)
-    monkeypatch.setattr(chunked, "SAMPLE_POSES", 399)  # a subset: the same identifiable set here
     blocks = pincal.calibrate(ur5, data, params="all", outliers=6.0)
     assert np.array_equal(dense.identifiability.identifiable, blocks.identifiability.identifiable)
     assert np.allclose(blocks.theta, dense.theta, rtol=0, atol=1e-9)
     assert np.allclose(blocks.std, dense.std, rtol=1e-6, atol=1e-12)
-    assert blocks.train_after.rms_mm == pytest.approx(dense.train_after.rms_mm, rel=1e-6)
+    assert blocks.train_after.rms_mm == pytest.approx(dense.train_after.rms_mm, rel=1e-9)
+    monkeypatch.setattr(chunked, "SAMPLE_POSES", 200)
+    sampled = pincal.calibrate(ur5, data, params="all", outliers=6.0)
+    assert np.array_equal(dense.identifiability.identifiable, sampled.identifiability.identifiable)
+    assert sampled.train_after.rms_mm == pytest.approx(dense.train_after.rms_mm, rel=0.01)
