@@ -84,8 +84,8 @@ def target_frames(
     for block in blocks(problem):
         frames, rot, pos = block.target_frames(theta, in_instrument)
         _forget(block)
-        tips_r.append(frames.tip_rotation)
-        tips_p.append(frames.tip_translation)
+        tips_r.append(frames.tip_rotation.copy())  # a view would keep every frame of the block
+        tips_p.append(frames.tip_translation.copy())
         rots.append(rot)
         poss.append(pos)
     tip = Frames(np.concatenate(tips_r)[None], np.concatenate(tips_p)[None])
