@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING
 from .errors import RobotError
 from .inputs import note_input
 from .sandbox import run_limited
-from .urdf_checks import without_default_namespace
+from .urdf_checks import declares_dtd, without_default_namespace
 
 if TYPE_CHECKING:
     from .ur_yaml import URKinematics
@@ -62,43 +62,12 @@ def is_xacro(path: str | Path) -> bool:
 def check_urdf_text(text: str, path: Path) -> str:
     """``text`` (from ``path``), refused if it has a DOCTYPE with declarations (which could make an XML parser
     read other files or expand entities without bound)."""
-    if "<!DOCTYPE" in text.upper() and _declares(text):
+    if "<!DOCTYPE" in text.upper() and declares_dtd(text):
         raise RobotError(
             f"URDF {path} has a DOCTYPE that declares entities or an external DTD, which could "
             "read other files: remove the <!DOCTYPE ...> block (a URDF needs none)"
         )
     return text
-
-
-class _Prolog(Exception):
-    """The parse reached the root element: the DOCTYPE, if any, is behind it."""
-
-
-def _declares(text: str) -> bool:
-    """Whether the DOCTYPE names an external DTD (``SYSTEM``, ``PUBLIC``) or has an internal subset
-    (entity declarations), as an XML parser reads it: the words elsewhere (a link named
-    ``PUBLIC-display``, ``SYSTEM`` in a comment) do not count (issue 33). The parse stops at the
-    root element; a text expat cannot read is left to the URDF checks' message."""
-    import xml.parsers.expat
-
-    found: list[bool] = []
-
-    def doctype(_name: str, system: str | None, public: str | None, subset: int) -> None:
-        found.append(bool(system or public or subset))
-        raise _Prolog  # nothing past the DOCTYPE's opening is parsed (no entity is read)
-
-    def start(*_: object) -> None:
-        raise _Prolog
-
-    parser = xml.parsers.expat.ParserCreate()
-    parser.StartDoctypeDeclHandler, parser.StartElementHandler = doctype, start
-    try:
-        parser.Parse(text.encode("utf-8"), True)
-    except _Prolog:
-        pass
-    except xml.parsers.expat.ExpatError:
-        return "<!ENTITY" in text.upper()  # not XML: the structure check says so, unless it may expand
-    return any(found)
 
 
 def parse_xacro_args(items: list[str] | tuple[str, ...] | None) -> dict[str, str]:

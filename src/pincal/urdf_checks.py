@@ -117,6 +117,37 @@ def without_default_namespace(text: str) -> str:
     return str(etree.tostring(root.getroottree(), encoding="unicode"))
 
 
+class _Prolog(Exception):
+    """The parse reached the root element: the DOCTYPE, if any, is behind it."""
+
+
+def declares_dtd(text: str) -> bool:
+    """Whether the DOCTYPE names an external DTD (``SYSTEM``, ``PUBLIC``) or has an internal subset
+    (entity declarations), as an XML parser reads it: the words elsewhere (a link named
+    ``PUBLIC-display``, ``SYSTEM`` in a comment) do not count (issue 33). The parse stops at the
+    root element; a text expat cannot read is left to the URDF checks' message."""
+    import xml.parsers.expat
+
+    found: list[bool] = []
+
+    def doctype(_name: str, system: str | None, public: str | None, subset: int) -> None:
+        found.append(bool(system or public or subset))
+        raise _Prolog  # nothing past the DOCTYPE's opening is parsed (no entity is read)
+
+    def start(*_: object) -> None:
+        raise _Prolog
+
+    parser = xml.parsers.expat.ParserCreate()
+    parser.StartDoctypeDeclHandler, parser.StartElementHandler = doctype, start
+    try:
+        parser.Parse(text.encode("utf-8"), True)
+    except _Prolog:
+        pass
+    except xml.parsers.expat.ExpatError:
+        return "<!ENTITY" in text.upper()  # not XML: the structure check says so, unless it may expand
+    return any(found)
+
+
 def _check_tree(links: list[str], parent_of: dict[str, tuple[str, str, bool]], path: str | Path) -> None:
     """One root, every link reached from it, and no path of more than :data:`MAX_CHAIN` movable joints."""
     roots = [link for link in links if link not in parent_of]
