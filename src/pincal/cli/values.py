@@ -50,7 +50,7 @@ def parameters(text: str) -> str | tuple[str, ...]:
         try:
             lines = read_bytes(path, "parameter list", _MAX_LIST_BYTES).decode("utf-8-sig").splitlines()
         except PincalError as exc:
-            raise argparse.ArgumentTypeError(str(exc)) from None
+            raise argparse.ArgumentTypeError(f"cannot read the parameter list {path}: {exc}") from None
         except UnicodeDecodeError as exc:
             raise argparse.ArgumentTypeError(f"cannot read the parameter list {path}: {exc}") from None
         names = name_list(",".join(line.split("#", 1)[0] for line in lines))
