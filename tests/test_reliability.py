@@ -518,3 +518,22 @@ def test_the_block_by_block_fit_is_the_dense_fit(monkeypatch: pytest.MonkeyPatch
     sampled = pincal.calibrate(ur5, data, params="all", outliers=6.0)
     assert np.array_equal(dense.identifiability.identifiable, sampled.identifiability.identifiable)
     assert sampled.train_after.rms_mm == pytest.approx(dense.train_after.rms_mm, rel=0.01)
+
+
+def test_the_degrees_hint_needs_the_points_to_follow_the_tip() -> None:
+    """The unit check's hint: points that are the tip seen by an instrument (any rigid motion) and
+    a tool offset follow it; points of another robot, spread alike, do not."""
+    import pinocchio as pin
+
+    from pincal.checks import follows
+
+    ur5, panda = pincal.load_robot("ur5"), pincal.load_robot("panda")
+    q = ur5.random_configurations(200, np.random.default_rng(0), 0.05)
+    frames = [ur5.frame_placement(row) for row in q]
+    tips = np.array([f.translation for f in frames])
+    seen = pin.SE3(pin.exp3(np.array([0.3, -1.0, 2.0])), np.array([1.0, 2.0, 0.5]))
+    points = np.array([seen.act(f.act(np.array([0.0, 0.03, 0.1]))) for f in frames])
+    assert follows(tips, points)
+    other = panda.random_configurations(200, np.random.default_rng(1), 0.05)
+    other_tips = np.array([panda.frame_placement(row).translation for row in other])
+    assert not follows(tips, other_tips * (pincal.checks.spread(tips) / pincal.checks.spread(other_tips)))
