@@ -537,3 +537,14 @@ def test_the_degrees_hint_needs_the_points_to_follow_the_tip() -> None:
     other = panda.random_configurations(200, np.random.default_rng(1), 0.05)
     other_tips = np.array([panda.frame_placement(row).translation for row in other])
     assert not follows(tips, other_tips * (pincal.checks.spread(tips) / pincal.checks.spread(other_tips)))
+
+
+def test_a_program_using_the_library_may_rewrite_what_it_read(files: dict[str, Path], tmp_path: Path) -> None:
+    """The guard is the command line's, for the files of one run: the library reads a CSV and
+    writes it back in millimetres (and a command run before leaves nothing behind)."""
+    copy = tmp_path / "pos.csv"
+    shutil.copy(files["pos"], copy)
+    data = pincal.read_csv(copy, pincal.load_robot("ur5").joint_names)
+    pincal.write_csv(copy, data, units="mm")
+    again = pincal.read_csv(copy, data.joint_names, units="mm")
+    assert np.allclose(again.points, data.points, rtol=0, atol=1e-15)

@@ -12,8 +12,9 @@ MUKCa's socket files. It
 
 :func:`input_named` tells the output guard (:func:`pincal.files.atomic_write_many` and the
 command line's early check) whether a path about to be written is one of the run's inputs: no
-command ever replaces one of its inputs, ``--force`` or not. :func:`forget_run_inputs` ends the
-run (the command line calls it when a command ends).
+command ever replaces one of its inputs, ``--force`` or not. Files are remembered only within
+:func:`run_scope` (the command line opens one for each command): a program that uses the library
+may rewrite a file it read before.
 """
 
 from __future__ import annotations
@@ -21,6 +22,8 @@ from __future__ import annotations
 import os
 import select
 import stat
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from .errors import DataError, PincalError
@@ -31,12 +34,25 @@ _READ_CHUNK = 1 << 20  # [bytes]
 
 _inputs: dict[str, str] = {}  # resolved path -> what it is ("data file", ...)
 _inodes: dict[tuple[int, int], str] = {}  # (device, inode) -> what it is
+_scope: list[bool] = []  # non-empty within run_scope
+
+
+@contextmanager
+def run_scope() -> Iterator[None]:
+    """The inputs read in the block are the run's: outputs written in it must not be one of them."""
+    forget_run_inputs()
+    _scope.append(True)
+    try:
+        yield
+    finally:
+        _scope.pop()
+        forget_run_inputs()
 
 
 def note_input(path: str | Path, what: str) -> None:
     """Remember ``path`` as an input of the run (a file that does not exist is not remembered)."""
     name = str(path)
-    if name == "-":
+    if name == "-" or not _scope:
         return
     try:
         info = os.stat(name)

@@ -24,6 +24,7 @@ from types import FrameType
 
 from ..errors import PincalError
 from ..files import forget_inputs
+from ..inputs import run_scope
 from .parser import attach_vectors, build_parser
 
 #: The parser (under its former private name, for tests that build it).
@@ -39,7 +40,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     closed = _reserve_closed_channels()
     with _terminate_unwinds():
         try:
-            return _run(argv, stdout_closed=closed[1])
+            with run_scope():  # no output of the run may be one of its inputs
+                return _run(argv, stdout_closed=closed[1])
         except PincalError as exc:
             return _error(str(exc), 2)
         except KeyboardInterrupt:
