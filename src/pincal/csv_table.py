@@ -1,9 +1,9 @@
 """Reading a CSV's columns as numbers, streamed and bounded.
 
-A regular file is read line by line (a million poses are not held as text, nor as a list of rows):
-only the wanted columns are kept, as 8-byte floats. Standard input and pipes are read once and
-their kept text is streamed the same way (:func:`pincal.files.read_input_text`). Lines that are
-blank or start with ``#`` are comments; the lines are those :meth:`str.splitlines` knows.
+A file is read once and bounded (:func:`pincal.files.read_input_text`), then parsed by blocks of
+lines, NumPy's C parser first: only the wanted columns are kept, as 8-byte floats (a million
+poses are never a million lists of cells). Lines that are blank or start with ``#`` are
+comments; the lines are those :meth:`str.splitlines` knows.
 
 Bounds (stated in ``docs/reliability.md``): at most :data:`MAX_COLUMNS` columns in the header,
 :data:`MAX_ROWS` data rows, :data:`~pincal.files.MAX_HEADER_CHARS` characters on a line and
@@ -15,7 +15,6 @@ from __future__ import annotations
 import csv
 import itertools
 import math
-import os
 from array import array
 from collections import Counter
 from collections.abc import Iterator, Sequence
@@ -25,7 +24,6 @@ import numpy as np
 
 from . import files
 from .errors import DataError
-from .inputs import check_regular
 
 #: Most columns a measurement CSV may have (a chain of 100 joints and its measurements has ~110).
 MAX_COLUMNS = 10_000
@@ -45,26 +43,17 @@ def content_lines(path: str | Path, what: str = "data file") -> Iterator[str]:
 
 
 def content_blocks(path: str | Path, what: str = "data file") -> Iterator[list[str]]:
-    """:func:`content_lines` in lists of about :data:`_BLOCK_LINES` lines."""
-    name = str(path)
-    if name == files.STDIN or name in files.kept_inputs() or not os.path.isfile(name):
-        lines = list(filter(files.is_content, files.read_input_text(path, what).splitlines()))
-        yield from (lines[k : k + _BLOCK_LINES] for k in range(0, len(lines), _BLOCK_LINES))
-        return
-    check_regular(name, what, files.MAX_INPUT_BYTES)
-    try:
-        with open(name, encoding="utf-8-sig", newline="") as fh:
-            while raw := fh.readlines(_BLOCK_LINES * 64):
-                if max(map(len, raw)) > files.MAX_HEADER_CHARS:  # the file's size bounds a line
-                    raise DataError(
-                        f"{what} {path}: a line longer than {files.MAX_HEADER_CHARS:,} characters: "
-                        "is it a CSV?"
-                    )
-                yield [line for line in "".join(raw).splitlines() if files.is_content(line)]
-    except UnicodeDecodeError as exc:
-        raise DataError(f"cannot read {what} {path}: not UTF-8 text ({exc.reason})") from None
-    except OSError as exc:
-        raise DataError(f"cannot read {what} {path}: {exc.strerror or exc}") from None
+    """:func:`content_lines` in lists of :data:`_BLOCK_LINES` lines. The file is read once, whole
+    and bounded (:func:`pincal.files.read_input_text`: at most 500 MB, a regular file or a pipe);
+    its lines are then parsed block by block (a million rows are never a million lists of cells)."""
+    text = files.read_input_text(path, what)
+    lines = [line for line in text.splitlines() if files.is_content(line)]
+    del text
+    longest = max(map(len, lines), default=0)
+    if longest > files.MAX_HEADER_CHARS:
+        raise DataError(f"{what} {path}: a line of {longest:,} characters: is it a CSV?")
+    for start in range(0, len(lines), _BLOCK_LINES):
+        yield lines[start : start + _BLOCK_LINES]
 
 
 def parse_header(path: str | Path, line: str) -> list[str]:

@@ -24,6 +24,7 @@ import pinocchio as pin
 from .csv_table import content_lines, parse_header, read_columns
 from .errors import DataError
 from .files import STDIN, atomic_write, first_line
+from .files import read_input_text as read_input_text  # re-exported: tests count its reads
 from .options import UNITS
 from .robots import Robot
 

@@ -130,21 +130,6 @@ def read_bytes(
     return data
 
 
-def check_regular(path: str | Path, what: str, limit: int, error: type[PincalError] = DataError) -> None:
-    """Refuse ``path`` unless it is a regular file of at most ``limit`` bytes, and remember it as an
-    input (for readers that stream the file themselves).
-
-    Raises:
-        PincalError: ``error``: missing, a folder, not a regular file, or larger than ``limit``.
-    """
-    mode = _mode(path, what, error)
-    if not stat.S_ISREG(mode):
-        raise error(f"{what} {path} is {_kind(mode)}, not a regular file: give a file")
-    if os.stat(str(path)).st_size > limit:
-        raise error(f"{what} {path} is larger than {_size(limit)}: is it the right file?")
-    note_input(path, what)
-
-
 def _mode(path: str | Path, what: str, error: type[PincalError]) -> int:
     try:
         mode = os.stat(str(path)).st_mode
