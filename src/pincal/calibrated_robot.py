@@ -14,10 +14,14 @@ import pinocchio as pin
 
 from .effects import Extension, Payload
 from .errors import DataError
+from .inputs import read_bytes
 from .kinematics import rigid_transform
 from .robots import Robot, load_robot
 from .ur_yaml import is_yaml
 from .urdf_writer import sidecar_path
+
+#: Largest sidecar read [bytes] (one is a few kB).
+MAX_SIDECAR_BYTES = 10_000_000
 
 
 @dataclass(frozen=True, eq=False)
@@ -87,10 +91,12 @@ def load_calibration(
         )
     path = Path(sidecar) if sidecar is not None else sidecar_path(urdf)
     try:
-        side = json.loads(path.read_text(encoding="utf-8"))
+        side = json.loads(read_bytes(path, "calibration sidecar", MAX_SIDECAR_BYTES).decode("utf-8"))
     except RecursionError:  # brackets nested deeper than Python's stack
         raise DataError(f"cannot read the calibration sidecar {path}: nested too deeply") from None
-    except FileNotFoundError:
+    except DataError:
+        if path.exists():
+            raise  # a device, a pipe, too large (issue 33)
         raise DataError(
             f"no calibration sidecar {path}: give the URDF written by 'pincal calibrate -o', "
             "with its .calibration.json beside it"
@@ -118,5 +124,7 @@ def load_calibration(
         tool = rigid_transform(side["tip_T_tool"]["matrix"], "tip_T_tool")
         registration = None if reg is None else rigid_transform(reg["matrix"], "instrument_T_base")
         return CalibratedRobot(robot, tool, str(side.get("measure", "position")), ext, effect, registration)
-    except (KeyError, TypeError, ValueError) as exc:
+    except (KeyError, TypeError, ValueError, AttributeError, IndexError) as exc:  # issue 33: any shape
         raise DataError(f"{path} is not a pincal calibration sidecar: bad or missing {exc}") from None
+    except DataError as exc:  # issue 33: a payload the sidecar gives is checked as --payload is
+        raise DataError(f"{path}: {exc}") from None

@@ -165,19 +165,22 @@ def check_scale(robot: Robot, data: Dataset, units: str = "m", degrees: bool = F
     Raises:
         DataError: the spreads differ by more than :data:`SCALE_RATIO`.
     """
+    bounded_spread(data.points, "measured points x,y,z")  # every point: a bound, not a statistic
+    data = _sample(data)  # the spreads are statistics: a million poses need not all be moved
     tips = np.array([robot.frame_placement(q).translation for q in data.q])
     with np.errstate(over="ignore", invalid="ignore"):
         tip_spread = spread(tips)
     if not np.isfinite(tip_spread):
         raise DataError("the URDF puts the tip beyond any finite distance: check its joint origins")
-    measured = bounded_spread(data.points, "measured points x,y,z")
+    measured = spread(data.points)
     if len(data) < 3:
         return
     ratio = measured / tip_spread if tip_spread > 0 else np.inf
     if 1.0 / SCALE_RATIO < ratio < SCALE_RATIO:
         return
-    angles = _other_angle_unit(robot, data, degrees)
-    if angles is not None and 1.0 / 3.0 < measured / angles < 3.0:
+    other = _other_angle_unit(robot, data, degrees)
+    angles = None if other is None else spread(other)
+    if other is not None and angles and 1.0 / 3.0 < measured / angles < 3.0 and follows(other, data.points):
         hint = (
             "the joint values look like radians read as degrees: drop --degrees"
             if degrees
@@ -203,17 +206,41 @@ def check_scale(robot: Robot, data: Dataset, units: str = "m", degrees: bool = F
     )
 
 
-def _other_angle_unit(robot: Robot, data: Dataset, degrees: bool) -> float | None:
-    """The tip's spread [m] with the revolute joint values read in the other angle unit (None
-    without a revolute joint)."""
+#: Poses the unit check moves the robot to (a random subset of larger data) and the largest RMS
+#: distance, as a share of the points' spread, of the points from the tip positions rigidly
+#: aligned on them, for the tip to "follow" the points (the unknown tool point adds some).
+CHECK_POSES, FOLLOW = 5000, 0.5
+
+
+def _sample(data: Dataset) -> Dataset:
+    if len(data) <= CHECK_POSES:
+        return data
+    return data.subset(np.sort(np.random.default_rng(0).choice(len(data), CHECK_POSES, replace=False)))
+
+
+def follows(tips: np.ndarray, points: np.ndarray) -> bool:
+    """Whether measured ``points`` (N, 3) are the tip positions ``tips`` (N, 3) seen by an
+    instrument (a rigid motion, Kabsch), up to :data:`FOLLOW` of their spread: data in degrees for
+    another robot spreads alike, but does not follow the tip (issue 33: its hint was --degrees)."""
+    tip_c, pts_c = tips - tips.mean(axis=0), points - points.mean(axis=0)
+    u, _, vt = np.linalg.svd(tip_c.T @ pts_c)
+    flip = np.diag([1.0, 1.0, float(np.sign(np.linalg.det(vt.T @ u.T)) or 1.0)])
+    residual = pts_c - tip_c @ (vt.T @ flip @ u.T).T
+    return bool(spread(residual) <= FOLLOW * spread(points))
+
+
+def _other_angle_unit(robot: Robot, data: Dataset, degrees: bool) -> np.ndarray | None:
+    """The tip's positions (N, 3) [m] with the revolute joint values read in the other angle unit
+    (None without a revolute joint, or when they are not finite or do not spread)."""
     revolute = ~np.asarray(robot.prismatic, dtype=bool)
     if not revolute.any():
         return None
     q = data.q.copy()
     q[:, revolute] = np.rad2deg(q[:, revolute]) if degrees else np.deg2rad(q[:, revolute])
+    tips = np.array([robot.frame_placement(row).translation for row in q])
     with np.errstate(over="ignore", invalid="ignore"):
-        tips = spread(np.array([robot.frame_placement(row).translation for row in q]))
-    return tips if np.isfinite(tips) and tips > 0 else None
+        size = spread(tips)
+    return tips if np.isfinite(size) and size > 0 else None
 
 
 def quaternion_columns(path: str | Path, header: Sequence[str], order: str = "wxyz") -> list[str]:

@@ -321,14 +321,18 @@ def _beyond(robot: Robot, q: np.ndarray, strict: bool) -> str:
 
 
 def write_program(
-    path: str | Path, result: Compensation, degrees: bool = False, prismatic: tuple[bool, ...] | None = None
+    path: str | Path,
+    result: Compensation,
+    degrees: bool = False,
+    prismatic: tuple[bool, ...] | None = None,
+    units: str = "m",
 ) -> None:
-    """Write the compensated commands (radians, or degrees for revolute joints) and a ``status``
-    column, atomically."""
-    q = result.q.copy()
-    if degrees:
-        revolute = ~np.array(prismatic or (False,) * q.shape[1])
-        q[:, revolute] = np.rad2deg(q[:, revolute])
+    """Write the compensated commands and a ``status`` column, atomically, in the program's units:
+    revolute joints in radians (degrees with ``degrees``), prismatic ones in ``units``
+    (:func:`pincal.units.joints_to_file`)."""
+    from .units import joints_to_file
+
+    q = joints_to_file(result.q, degrees, units, prismatic)
     lines = [",".join([*result.joint_names, "status"])]
     lines += [",".join([*(repr(float(v)) for v in row), s]) for row, s in zip(q, result.status)]
     atomic_write(path, "\n".join(lines) + "\n")

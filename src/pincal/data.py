@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import csv
 import io
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -22,8 +21,10 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from .csv_table import content_lines, parse_header, read_columns
 from .errors import DataError
-from .files import STDIN, atomic_write, first_line, is_content, read_input_text
+from .files import STDIN, atomic_write, first_line
+from .files import read_input_text as read_input_text  # re-exported: tests count its reads
 from .options import UNITS
 from .robots import Robot
 
@@ -122,38 +123,29 @@ class Dataset:
         return self.subset(np.sort(order[n_out:])), self.subset(np.sort(order[:n_out]))
 
 
-def _read_lines(path: Path) -> list[str]:
-    text = read_input_text(path)  # once: standard input and pipes cannot be read twice
-    lines = list(filter(is_content, text.splitlines()))
-    if not lines:
-        name = "standard input" if str(path) == STDIN else path
-        raise DataError(f"{name} is empty: it needs a header line and one row per pose")
-    return lines
-
-
 def csv_columns(path: str | Path) -> list[str]:
     """The column names of a measurement CSV (its first non-comment line, read up to it)."""
-    header = first_line(path) or _read_lines(Path(path))[0]  # None: the empty file's message
-    try:
-        return [h.strip() for h in next(csv.reader([header]))]
-    except csv.Error as exc:
-        raise DataError(f"{path}: malformed header line ({exc})") from None
+    header = first_line(path)
+    if header is None:
+        name = "standard input" if str(path) == STDIN else path
+        raise DataError(f"{name} is empty: it needs a header line and one row per pose")
+    return parse_header(path, header)
 
 
 Table = tuple[list[str], list[list[str]]]
 
 
 def read_rows(path: Path) -> Table:
-    """Header and data rows of a CSV (comments dropped), with duplicated columns refused."""
+    """Header and data rows of a CSV as text (comments dropped), with duplicated columns refused."""
+    lines = content_lines(path)
+    first = next(lines, None)
+    if first is None:
+        raise DataError(f"{path} is empty: it needs a header line and one row per pose")
+    header = parse_header(path, first)
     try:
-        rows = list(csv.reader(io.StringIO("\n".join(_read_lines(path)))))
+        return header, list(csv.reader(lines))
     except csv.Error as exc:
         raise DataError(f"{path}: malformed CSV ({exc})") from None
-    header = [h.strip() for h in rows.pop(0)]
-    dupes = sorted({h for h in header if h and header.count(h) > 1})
-    if dupes:
-        raise DataError(f"{path}: duplicated column(s) {', '.join(dupes)}")
-    return header, rows
 
 
 def read_table(
@@ -163,43 +155,14 @@ def read_table(
     rename: dict[str, str] | None = None,
     table: Table | None = None,
 ) -> np.ndarray:
-    """The named columns of a CSV as finite numbers (rows, columns).
-
-    Args:
-        path: the CSV file (``#`` lines are comments).
-        columns: the columns wanted, in order.
-        what: how to describe the required columns in an error message.
-        rename: optional map from wanted name to the file's column name.
-        table: the file's header and rows, when already read (else the file is read).
+    """The named columns of a CSV as finite numbers (rows, columns), streamed
+    (:func:`pincal.csv_table.read_columns`; ``table``, the file's header and rows already read,
+    is accepted for callers of old and read again from the file).
 
     Raises:
         DataError: missing file, duplicated or missing columns, no rows, non-numeric or non-finite cells.
     """
-    path = Path(path)
-    header, rows = table or read_rows(path)
-    names = [(rename or {}).get(c, c) for c in columns]
-    missing = [c for c in names if c not in header]
-    if missing:
-        raise DataError(f"{path}: missing column(s) {', '.join(missing)}; the header must name {what}")
-    if not rows:
-        raise DataError(f"{path} has a header but no data rows")
-    cols = [header.index(c) for c in names]
-    values = np.empty((len(rows), len(cols)))
-    for r, row in enumerate(rows):
-        if len(row) != len(header):
-            raise DataError(f"{path}: data row {r + 1} has {len(row)} fields, the header {len(header)}")
-        for k, c in enumerate(cols):
-            try:
-                values[r, k] = float(row[c])
-            except ValueError:
-                raise DataError(
-                    f"{path}: data row {r + 1}, column {names[k]}: {row[c]!r} is not a number"
-                ) from None
-            if not math.isfinite(values[r, k]):
-                raise DataError(
-                    f"{path}: data row {r + 1}, column {names[k]}: {row[c]} is not a finite number"
-                )
-    return values
+    return read_columns(path, columns, what, rename)[0]
 
 
 def read_csv(
@@ -255,13 +218,10 @@ def read_csv(
 def joint_values(
     values: np.ndarray, degrees: bool, units: str, prismatic: Sequence[bool] | None
 ) -> np.ndarray:
-    """Joint columns as read -> radians and metres."""
-    q = values.copy()
-    prism = np.asarray(prismatic if prismatic is not None else [False] * q.shape[1], dtype=bool)
-    if degrees:
-        q[:, ~prism] = np.deg2rad(q[:, ~prism])
-    q[:, prism] *= UNITS[units]
-    return q
+    """Joint columns as read -> radians and metres (:func:`pincal.units.joints_from_file`)."""
+    from .units import joints_from_file
+
+    return joints_from_file(values, degrees, units, prismatic)
 
 
 def unit_quaternions(path: str | Path, quats: np.ndarray) -> np.ndarray:

@@ -20,7 +20,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from .errors import RobotError
+from .inputs import note_input
 from .sandbox import run_limited
+from .urdf_checks import declares_dtd, without_default_namespace
 
 if TYPE_CHECKING:
     from .ur_yaml import URKinematics
@@ -32,8 +34,6 @@ _XACRO_LOCK = threading.Lock()  # xacro keeps its state in module globals
 XACRO_SECONDS = 30.0
 XACRO_MEMORY = 2_000_000_000
 _SEARCH_DEPTH = 3  # [folders] below each ROS_PACKAGE_PATH entry
-_DOCTYPE = re.compile(r"<!DOCTYPE", re.IGNORECASE)
-_DECLARATION = re.compile(r"<!(ENTITY|ELEMENT|ATTLIST)|\b(SYSTEM|PUBLIC)\b")
 
 
 class PackageNotFoundError(RobotError):
@@ -62,8 +62,7 @@ def is_xacro(path: str | Path) -> bool:
 def check_urdf_text(text: str, path: Path) -> str:
     """``text`` (from ``path``), refused if it has a DOCTYPE with declarations (which could make an XML parser
     read other files or expand entities without bound)."""
-    # Declarations anywhere count: a comment may hide the end of the DOCTYPE.
-    if _DOCTYPE.search(text) is not None and _DECLARATION.search(text):
+    if "<!DOCTYPE" in text.upper() and declares_dtd(text):
         raise RobotError(
             f"URDF {path} has a DOCTYPE that declares entities or an external DTD, which could "
             "read other files: remove the <!DOCTYPE ...> block (a URDF needs none)"
@@ -226,6 +225,8 @@ def xacro_to_urdf(
             memory=XACRO_MEMORY,
             what=f"cannot process xacro {path}",
         )
+    for include in [str(path), *map(str, includes)]:  # outputs must not replace them (issue 33)
+        note_input(include, f"file {Path(include).name} the xacro includes")
     declared = _declared_args([path, *(Path(f) for f in includes)])
     unknown = sorted(set(xacro_args or {}) - declared)
     if unknown:
@@ -290,6 +291,7 @@ def robot_description(
         raise RobotError(f"--xacro-arg is for a .xacro robot file, and {path.name} is not one")
     else:
         text = read_urdf_text(path)
+    text = without_default_namespace(text)  # issue 33: the writers look elements up by plain name
     if kinematics is not None:
         from .ur_frames import apply_ur_kinematics
         from .ur_yaml import URKinematics, read_ur_kinematics

@@ -79,6 +79,14 @@ class Payload:
             )
         return cls(values[0], (values[1], values[2], values[3]))
 
+    def __post_init__(self) -> None:
+        """A mass of 0 kg or more and a centre of mass within 1e6 m, all finite (issue 33)."""
+        if not (0.0 <= self.mass < 1e6 and all(abs(c) < 1e6 for c in self.com)):  # NaN fails too
+            raise DataError(
+                f"payload mass {self.mass} kg, centre of mass {self.com} m: a load has a finite mass "
+                "of 0 kg or more and a centre of mass within 1e6 m"
+            )
+
 
 #: The last few :func:`gravity_torques` answers: a diagnosis asks for the same poses' torques
 #: for every loaded joint's compliance and backlash, and each costs a Pinocchio call per pose.

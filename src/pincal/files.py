@@ -7,11 +7,15 @@ name in the process gets it (a CSV's header is read before its table). Anything 
 
 Outputs (:func:`atomic_write`, :func:`atomic_write_many`): only regular files are written. A
 symlink is written through (its target is replaced, the link stays); a folder, a device, a named
-pipe or a socket is refused. Each text goes to a temporary file beside its target, and only when
-every one is complete are they renamed over their targets (Ctrl-C and SIGTERM held back during
-the renames), so a full disk, a folder that refuses the file or Ctrl-C leave the old files (or
-none) and no partial one, nor a new file beside an old one. A new file gets the usual
-permissions (0666 less the process umask), a replaced one keeps its own.
+pipe or a socket is refused, and so is a file the run reads (:mod:`pincal.inputs`: the data,
+the URDF and its xacro includes, a ``@FILE`` list, a sidecar, ``--force`` or not). Each text
+goes to an unnamed file in its target's folder (``O_TMPFILE``; where the file system has none,
+a ``.pincal-*.tmp`` file removed on every way out), and only when every one is complete are they
+named over their targets (Ctrl-C and SIGTERM held back during the renames), so a full disk, a
+folder that refuses the file, Ctrl-C or a kill leave the old files (or none) and no partial or
+temporary one, nor a new file beside an old one. The temporary name is short, so a target may
+have the longest name the file system allows. A new file gets the usual permissions (0666 less
+the process umask), a replaced one keeps its own.
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from .errors import DataError, OutputError
+from .inputs import forget_run_inputs, input_named, note_input, read_bytes
 
 #: Largest input file read [bytes] (a measurement CSV of a million poses is about 100 MB).
 MAX_INPUT_BYTES = 500_000_000
@@ -45,25 +50,17 @@ def read_input_text(path: str | Path, what: str = "data file") -> str:
         what: how to name the input in messages.
 
     Raises:
-        DataError: missing, unreadable, not UTF-8, too large, or a terminal as standard input.
+        DataError: missing, unreadable, not UTF-8, too large, a device, a pipe nobody writes
+            to, or a terminal as standard input.
     """
     name = str(path)
     if name in _read_once:
         return _read_once[name]
-    try:
-        if name == STDIN:
-            data = _read_stdin(what)
-            once = True
-        else:
-            with open(name, "rb") as fh:
-                once = not stat.S_ISREG(os.fstat(fh.fileno()).st_mode)
-                data = fh.read(MAX_INPUT_BYTES + 1)
-    except FileNotFoundError:
-        raise DataError(f"{what} not found: {path}") from None
-    except IsADirectoryError:
-        raise DataError(f"{what} {path} is a folder: give a CSV file") from None
-    except OSError as exc:
-        raise DataError(f"cannot read {what} {path}: {exc.strerror or exc}") from None
+    if name == STDIN:
+        data, once = _read_stdin(what), True
+    else:
+        once = not os.path.isfile(name)  # a pipe is read once: its text is kept
+        data = read_bytes(name, what, MAX_INPUT_BYTES, pipes=True)
     if len(data) > MAX_INPUT_BYTES:
         raise DataError(f"{what} {path} is larger than {MAX_INPUT_BYTES // 1_000_000} MB: is it a CSV?")
     try:
@@ -97,6 +94,7 @@ def first_line(path: str | Path, what: str = "data file") -> str | None:
     name = str(path)
     regular = name != STDIN and name not in _read_once and os.path.isfile(name)
     if regular and stat.S_ISREG(os.stat(name).st_mode):
+        note_input(name, what)
         try:
             with open(name, encoding="utf-8-sig") as fh:
                 while line := fh.readline(MAX_HEADER_CHARS):
@@ -126,9 +124,15 @@ def _read_stdin(what: str) -> bytes:
     return stream.read(MAX_INPUT_BYTES + 1).encode("utf-8")
 
 
+def kept_inputs() -> frozenset[str]:
+    """The names of the inputs read once whose text is kept (standard input, pipes)."""
+    return frozenset(_read_once)
+
+
 def forget_inputs() -> None:
     """Drop the kept texts of inputs read once (the command line does it when a command ends)."""
     _read_once.clear()
+    forget_run_inputs()
 
 
 def output_target(path: str | Path) -> Path:
@@ -166,32 +170,101 @@ def atomic_write(path: str | Path, text: str | bytes) -> None:
 
 
 def atomic_write_many(files: Sequence[tuple[str | Path, str | bytes]]) -> None:
-    """Write several files, all or none: each to a temporary file beside it, then every one renamed.
+    """Write several files, all or none: each to an unnamed file in its folder, then every one
+    given its name at once (see the module docstring).
 
     Raises:
-        OutputError: an output that is not a regular file, or one that cannot be written.
+        OutputError: an output that is an input of the run, is not a regular file, or cannot be
+            written.
     """
-    staged: list[tuple[str, Path]] = []
+    staged: list[_Staged] = []
     current: str | Path = ""
     try:
         for current, text in files:
             target = output_target(current)
-            fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
-            staged.append((tmp, target))
-            try:
-                os.fchmod(fd, _mode(target))
-                _write_all(fd, text.encode("utf-8") if isinstance(text, str) else text)
-            finally:
-                os.close(fd)
+            source = input_named(target)
+            if source is not None:
+                raise OutputError(f"{current} is the {source} this run reads: write to another file")
+            staged.append(_Staged(target))
+            staged[-1].write(text.encode("utf-8") if isinstance(text, str) else text)
         with _interrupts_held():  # a Ctrl-C between two renames would leave old and new side by side
-            for tmp, target in staged:
-                os.replace(tmp, target)
+            for one in staged:
+                one.commit()
     except OSError as exc:
-        _remove(staged)
         raise OutputError(f"cannot write {current}: {exc.strerror or exc}{_hint(exc)}") from None
-    except BaseException:
-        _remove(staged)
-        raise
+    finally:
+        for one in staged:
+            one.discard()
+
+
+class _Staged:
+    """One output's bytes written, not yet named: an ``O_TMPFILE`` (no name in any folder until
+    :meth:`commit`), or where the system has none a ``.pincal-*.tmp`` file beside the target,
+    removed by :meth:`discard` on every way out."""
+
+    def __init__(self, target: Path) -> None:
+        self.target, self.name, self.data = target, "", b""
+        try:
+            self.fd = os.open(target.parent, os.O_TMPFILE | os.O_WRONLY | os.O_CLOEXEC, 0o600)
+        except (AttributeError, OSError) as exc:
+            if isinstance(exc, OSError) and exc.errno not in _NO_TMPFILE:
+                raise
+            self.fd, self.name = tempfile.mkstemp(dir=target.parent, prefix=".pincal-", suffix=".tmp")
+
+    def write(self, data: bytes) -> None:
+        """Write every byte, with the permissions the target will have."""
+        self.data = data
+        os.fchmod(self.fd, _mode(self.target))
+        _write_all(self.fd, data)
+
+    def commit(self) -> None:
+        """Give the file its name (replacing the old file), through a short temporary name."""
+        if not self.name:
+            self.name = self._link()
+        os.close(self.fd)
+        self.fd = -1
+        os.replace(self.name, self.target)
+        self.name = ""
+
+    def _link(self) -> str:
+        folder = os.open(self.target.parent, os.O_RDONLY | os.O_DIRECTORY)
+        try:
+            for _ in range(100):
+                name = self._free_name()
+                try:  # linkat with AT_SYMLINK_FOLLOW (a dir_fd makes Python use linkat)
+                    os.link(f"/proc/self/fd/{self.fd}", Path(name).name, src_dir_fd=folder, dst_dir_fd=folder)
+                    return name
+                except FileExistsError:
+                    continue
+                except OSError:  # no /proc, or a file system that cannot name an unnamed file
+                    break
+        finally:
+            os.close(folder)
+        os.close(self.fd)
+        self.fd, name = tempfile.mkstemp(dir=self.target.parent, prefix=".pincal-", suffix=".tmp")
+        self.name = name
+        self.write(self.data)
+        return name
+
+    def _free_name(self) -> str:
+        """A temporary name no file has, in the target's folder (taken by ``mkstemp``, then freed)."""
+        fd, name = tempfile.mkstemp(dir=self.target.parent, prefix=".pincal-", suffix=".tmp")
+        os.close(fd)
+        os.unlink(name)
+        return name
+
+    def discard(self) -> None:
+        """Close and remove what :meth:`commit` did not name."""
+        if self.fd >= 0:
+            os.close(self.fd)
+            self.fd = -1
+        if self.name:
+            Path(self.name).unlink(missing_ok=True)
+            self.name = ""
+
+
+#: ``errno`` of a folder whose file system has no ``O_TMPFILE``.
+_NO_TMPFILE = (errno.EOPNOTSUPP, errno.EISDIR, errno.EINVAL, errno.ENOENT)
 
 
 @contextmanager
@@ -231,11 +304,6 @@ def _mode(target: Path) -> int:
         mask = os.umask(0o022)  # the umask can only be read by setting it: set it back at once
         os.umask(mask)
         return 0o666 & ~mask
-
-
-def _remove(staged: list[tuple[str, Path]]) -> None:
-    for tmp, _ in staged:
-        Path(tmp).unlink(missing_ok=True)
 
 
 def _hint(exc: OSError) -> str:

@@ -40,6 +40,7 @@ def levenberg_marquardt(
     ftol: float = 1e-12,
     gtol: float = 1e-12,
     max_nfev: int = 200,
+    triangle: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> OptimizeResult:
     """Minimise ``½‖fun(x)‖²``; arguments and result as ``scipy.optimize.least_squares``.
 
@@ -51,22 +52,27 @@ def levenberg_marquardt(
             the cost falls by less than ``ftol`` relative (and is predicted to), or when no
             column of the Jacobian is more than ``gtol`` from orthogonal to the residuals.
         max_nfev: most evaluations of ``fun``.
+        triangle: if given, ``triangle(x)`` is the triangle R of the QR of ``[jac(x) · x_scale,
+            fun(x)]`` (built block by block for large data, :mod:`pincal.chunked`), and ``jac`` is
+            not called: every step needs only R.
     """
     x, res = np.array(x0, dtype=float), fun(x0)
     cost, nfev, njev, damping = 0.5 * float(res @ res), 1, 0, 0.0
     status, message = 0, "the maximum number of function evaluations is exceeded"
     while nfev < max_nfev and status == 0:
-        scaled = jac(x) * x_scale
+        if triangle is None:
+            tri_all = np.asarray(np.linalg.qr(np.column_stack([jac(x) * x_scale, res]), mode="r"))
+        else:
+            tri_all = triangle(x)
         njev += 1
-        columns = np.linalg.norm(scaled, axis=0)
+        n = len(x)
+        tri, qtr = tri_all[:n, :n], tri_all[:n, n]
+        columns = np.linalg.norm(tri, axis=0)  # JᵀJ = RᵀR and Jᵀr = Rᵀ(Qᵀr): R says all
         res_norm = np.sqrt(2.0 * cost)
-        cosines = np.abs(scaled.T @ res) / np.where(columns > 0, columns, 1.0)
+        cosines = np.abs(tri.T @ qtr) / np.where(columns > 0, columns, 1.0)
         if res_norm == 0.0 or np.max(cosines) <= gtol * res_norm:
             status, message = 1, "gtol: the residuals are orthogonal to the Jacobian's columns"
             break
-        tri_all = np.asarray(np.linalg.qr(np.column_stack([scaled, res]), mode="r"))
-        n = scaled.shape[1]
-        tri, qtr = tri_all[:n, :n], tri_all[:n, n]
         largest = float(np.max(np.sum(tri**2, axis=0)))
         while nfev < max_nfev:
             step = _step(tri, qtr, damping)

@@ -17,17 +17,19 @@ Residuals (model minus measurement):
 - ``points``: the tip (base frame) minus the position of the fixed point the row names, 3 per
   row [m], then one per known distance between points (:mod:`pincal.fixed_points`); the points'
   positions (3 each, [m]) take the registration's place in θ.
+
+Position and pose data of many poses are evaluated block by block (:mod:`pincal.chunked`).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from itertools import combinations
 from typing import Any
 
 import numpy as np
 import pinocchio as pin
 
+from . import chunked
 from .data import Dataset
 from .effects import Extension
 from .errors import DataError
@@ -35,26 +37,8 @@ from .fixed_points import PointDistance, check_distances, point_index, point_mea
 from .kinematics import Chain, Frames, forward, jlog3, log3, stacked_dot, twist_columns
 from .models import Model
 from .options import MEASURES, ROTATION_WEIGHT
-
-
-def all_pairs(n: int) -> np.ndarray:
-    """Every pair ``(i, j)``, ``i < j``, of ``n`` poses: (n(n-1)/2, 2)."""
-    return np.array(list(combinations(range(n), 2)), dtype=int).reshape(-1, 2)
-
-
-def gao_pairs(n: int) -> np.ndarray:
-    """Gao et al. (2013) eq. 21 (0-based): (i, i+n/2), (2i, 2i-1), (4i, 4i-2), (4i-1, 4i-3).
-
-    For the paper's 28 poses these are its 42 pairs; other ``n`` take the pairs that exist.
-    """
-    pairs = set()
-    for i in range(1, n // 2 + 1):
-        pairs.add((i, i + n // 2))
-        pairs.add((2 * i - 1, 2 * i))
-    for i in range(1, n // 4 + 1):
-        pairs.add((4 * i - 2, 4 * i))
-        pairs.add((4 * i - 3, 4 * i - 1))
-    return np.array(sorted((a - 1, b - 1) for a, b in pairs if 1 <= a <= n and 1 <= b <= n and a != b))
+from .pairs import all_pairs as all_pairs  # re-exported: the pairings live in pincal.pairs
+from .pairs import gao_pairs as gao_pairs
 
 
 @dataclass(frozen=True)
@@ -215,6 +199,9 @@ class Problem:
         key = (theta.tobytes(), in_instrument)
         if self._frames[0] == key:  # a solver asks for residuals and Jacobian at the same θ
             return self._frames[1]
+        if chunked.is_large(self):  # block by block (issue 33): the tip frame only
+            self._frames = (key, chunked.target_frames(self, theta, in_instrument))
+            return self._frames[1]
         x, reg, tool = self.split(theta)
         chain = self.model.chain(x[: self.model.n_params])
         if in_instrument:
@@ -315,6 +302,8 @@ class Problem:
 
     def _evaluate(self, theta: np.ndarray, cols: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
         """Residuals and, if columns ``cols`` are asked for, their Jacobian (else an empty array)."""
+        if chunked.is_large(self):
+            return chunked.evaluate(self, theta, cols)
         m = self.measurement
         frames, rot, pos = self.target_frames(theta, in_instrument=m.kind not in ("distance", "points"))
         if m.kind == "points":

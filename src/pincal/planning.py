@@ -331,13 +331,12 @@ def _check_equations(measure: str, n_poses: int, n_free: int) -> tuple[str, ...]
     )
 
 
-def write_poses(path: str | Path, plan: Plan, degrees: bool = False) -> None:
-    """Write the planned poses as a CSV with a column per joint (radians, or degrees), and for
-    fixed-point data a ``point`` column naming the socket, atomically."""
-    q = plan.q.copy()
-    revolute = ~np.array(plan.robot.prismatic)
-    if degrees:
-        q[:, revolute] = np.rad2deg(q[:, revolute])
+def write_poses(path: str | Path, plan: Plan, degrees: bool = False, units: str = "m") -> None:
+    """Write the planned poses as a CSV with a column per joint (radians, or degrees; prismatic
+    joints in ``units``), and for fixed-point data a ``point`` column naming the socket, atomically."""
+    from .units import joints_to_file  # the one unit layer (issue 33)
+
+    q = joints_to_file(plan.q, degrees, units, plan.robot.prismatic)
     sockets = [""] * len(q) if plan.sockets is None else [f",{k}" for k in plan.sockets]
     head = ",".join(plan.robot.joint_names) + ("" if plan.sockets is None else ",point")
     lines = [head] + [",".join(repr(float(v)) for v in row) + at for row, at in zip(q, sockets)]

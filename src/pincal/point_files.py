@@ -8,13 +8,18 @@ column per chain joint [rad]; a folder of placements reads as one data set.
 
 from __future__ import annotations
 
+import io
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
-from .data import Dataset, joint_values, read_rows, read_table
+from . import files
+from .csv_table import read_columns
+from .data import Dataset, csv_columns, joint_values
 from .errors import DataError
+from .inputs import read_bytes
 
 
 def read_points_csv(
@@ -30,17 +35,14 @@ def read_points_csv(
     Raises:
         DataError: the file is missing or malformed, no ``point`` column, an empty point name.
     """
-    table = read_rows(Path(path))
-    what = f"every chain joint ({', '.join(joint_names)}) and point"
-    q = joint_values(read_table(path, joint_names, what, table=table), degrees, units, prismatic)
-    header, rows = table
-    if "point" not in header:
+    if "point" not in csv_columns(path):
         raise DataError(f"{path}: no 'point' column; fixed-point data names each row's point there")
-    at = header.index("point")
+    what = f"every chain joint ({', '.join(joint_names)}) and point"
+    values, points = read_columns(path, joint_names, what, text_column="point")  # streamed (issue 33)
+    q = joint_values(values, degrees, units, prismatic)
     names: dict[str, int] = {}
-    labels = np.empty(len(rows), dtype=int)
-    for r, row in enumerate(rows):
-        name = row[at].strip()  # read_table checked that every row has the header's fields
+    labels = np.empty(len(points), dtype=int)
+    for r, name in enumerate(points):
         if not name:
             raise DataError(f"{path}: data row {r + 1} has no point name in column 'point'")
         labels[r] = names.setdefault(name, len(names))
@@ -79,10 +81,7 @@ def read_socket_folder(
         )
     blocks, labels = [], []
     for k, path in enumerate(files):
-        try:
-            values = np.loadtxt(path, delimiter=",", ndmin=2, comments="#")
-        except (OSError, ValueError) as exc:
-            raise DataError(f"{path}: not a table of numbers ({exc})") from None
+        values = _socket_rows(path)
         if values.size == 0:
             raise DataError(f"{path} has no rows")
         if values.shape[1] != len(joint_names) or not np.all(np.isfinite(values)):
@@ -106,6 +105,18 @@ def read_socket_folder(
         point_names=names,
         point_rows=first,
     )
+
+
+def _socket_rows(path: Path) -> np.ndarray:
+    """The rows of one socket file: a regular file of at most :data:`pincal.files.MAX_INPUT_BYTES`,
+    read once (a link to ``/dev/zero`` or a named pipe is refused, issue 33)."""
+    text = read_bytes(path, "socket file", files.MAX_INPUT_BYTES).decode("utf-8", "replace")
+    try:
+        with warnings.catch_warnings():  # an empty file is said below, not warned of by NumPy
+            warnings.simplefilter("ignore", UserWarning)
+            return np.loadtxt(io.StringIO(text), delimiter=",", ndmin=2, comments="#")
+    except ValueError as exc:
+        raise DataError(f"{path}: not a table of numbers ({' '.join(str(exc).split())})") from None
 
 
 def _placements(

@@ -12,6 +12,7 @@ from dataclasses import replace
 import numpy as np
 import pinocchio as pin
 
+from .chunked import sample_poses
 from .data import Dataset
 from .kinematics import Chain, forward
 from .measurements import Measurement
@@ -46,6 +47,7 @@ def initial_measurement(robot: Robot, data: Dataset, measurement: Measurement) -
     """
     if measurement.kind == "points":  # no instrument; the points start at their rows' means
         return measurement
+    data = sample_poses(data)  # a first guess: a random subset of many poses will do (issue 33)
     frames = forward(Chain.nominal(robot), data.q)
     rot, pos = frames.tip_rotation, frames.tip_translation
     reg, tool = measurement.instrument_T_base, measurement.tool

@@ -7,7 +7,6 @@ rotation vector [mrad]) and ``tool.*`` the measured point or frame on the tip, b
 
 from __future__ import annotations
 
-import json
 from typing import Any
 
 import numpy as np
@@ -17,6 +16,7 @@ from .calibration import Calibration
 from .data import Dataset
 from .effects import compliance_stiffness
 from .evaluation import ErrorStats, Misplaced, PlacementErrors, misplaced_rows, placement_errors
+from .json_text import json_text
 from .models import PoeModel
 from .outcome import Outcome
 
@@ -147,16 +147,7 @@ def report_json(
 ) -> str:
     """The report as JSON text (no NaN or infinity: those become null), with ``extra`` keys."""
 
-    def clean(obj: Any) -> Any:
-        if isinstance(obj, float) and not np.isfinite(obj):
-            return None
-        if isinstance(obj, dict):
-            return {k: clean(v) for k, v in obj.items()}
-        if isinstance(obj, list):
-            return [clean(v) for v in obj]
-        return obj
-
-    return json.dumps(clean({**report_dict(cal, data, test, outcome), **extra}), indent=2) + "\n"
+    return json_text({**report_dict(cal, data, test, outcome), **extra})
 
 
 #: What the report says of fitted fixed-point data: each placement's errors, the misplaced rows.

@@ -26,6 +26,7 @@ import pinocchio as pin
 
 from .descriptions import URDF_SUFFIXES, borrow_inertias, check_urdf_text, robot_description
 from .errors import RobotError
+from .inputs import read_bytes
 from .joint_kinds import actuated_joints, joint_path, mimic_joints, reference_configuration
 from .options import BUNDLED
 from .urdf_checks import check_urdf_structure
@@ -175,12 +176,8 @@ def read_urdf_text(path: Path) -> str:
         RobotError: unreadable file, not UTF-8, too large, or a DOCTYPE with declarations.
     """
     try:
-        if path.stat().st_size > MAX_URDF_BYTES:
-            raise RobotError(f"URDF {path} is larger than {MAX_URDF_BYTES // 1_000_000} MB: is it a URDF?")
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise RobotError(f"URDF file not found: {path}") from None
-    except (OSError, UnicodeDecodeError) as exc:
+        text = read_bytes(path, "URDF", MAX_URDF_BYTES, error=RobotError).decode("utf-8")  # bounded
+    except UnicodeDecodeError as exc:
         raise RobotError(f"cannot read URDF {path}: {exc}") from None
     return check_urdf_text(text, path)
 
@@ -257,7 +254,7 @@ def load_robot(
         path = Path(name)
         if path.suffix.lower() not in URDF_SUFFIXES:
             raise RobotError(f"unknown robot {name!r}: give a .urdf path or one of {', '.join(BUNDLED)}")
-        if not path.is_file():
+        if not path.exists():
             raise RobotError(f"URDF file not found: {path}")
     text = robot_description(path, xacro_args, package_paths, kinematics)
     lent = "" if inertias is None else _with_inertias(text, inertias)

@@ -29,6 +29,7 @@ import numpy as np
 import pinocchio as pin
 from scipy.optimize import OptimizeResult, least_squares
 
+from . import chunked
 from .calibration import Calibration
 from .checks import spread
 from .data import Dataset
@@ -174,8 +175,7 @@ PRIOR_WEIGHT = 1.5e-3
 def solve(
     setup: Setup, theta: np.ndarray, free: np.ndarray, loss: str = "linear", f_scale: float = 1e-4
 ) -> tuple[np.ndarray, OptimizeResult]:
-    """Least squares over the unknowns ``free`` (mask), starting from ``theta``; the free
-    geometric corrections are held near the URDF by rows of weight :data:`PRIOR_WEIGHT`.
+    """Least squares over the unknowns ``free`` (mask) from ``theta``, held by :data:`PRIOR_WEIGHT` rows.
 
     Args:
         setup: the problem.
@@ -204,7 +204,8 @@ def solve(
 
     x_scale = setup.scale[free] * 1e-3
     if loss == "linear" and len(problem.residuals(theta)) >= free.sum():
-        result = levenberg_marquardt(residuals, jacobian, theta[free], x_scale, max_nfev=200)
+        big = chunked.lm_triangle(problem, full, free, x_scale, (prior, nominal[geometric]))  # issue 33
+        result = levenberg_marquardt(residuals, jacobian, theta[free], x_scale, max_nfev=200, triangle=big)
     else:
         tight = dict.fromkeys(("xtol", "ftol", "gtol"), 1e-12)
         options = dict(loss=loss, f_scale=f_scale, x_scale=x_scale, max_nfev=200, **tight)
@@ -239,6 +240,7 @@ def identifiable_set(
         IdentifiabilityError: the data cannot identify what varied poses would (unless
             ``partial``), or gives fewer equations than unknowns.
     """
+    setup = chunked.sampled(setup)  # issue 33: many poses, a random subset of them (pincal.chunked)
     problem, mdl = setup.problem, setup.model
     held = dict(mdl.held)
     if params is not None:
@@ -279,7 +281,7 @@ def screen_outliers(
     """Outlier poses of a fit (indices, worst first) and every pose's score [m]."""
 
     def robust(start: np.ndarray, how: str, size: float) -> np.ndarray:
-        return solve(setup, start, free, how, size)[0]
+        return solve(chunked.sampled(setup), start, free, how, size)[0]  # issue 33: many poses, a subset
 
     return find_outliers(setup.problem, theta, robust, threshold)
 
@@ -315,10 +317,10 @@ def assess(
 
     std = np.zeros(problem.n_params)
     free = ident.identifiable
-    jac = problem.jacobian(theta, free) * setup.scale[free]
+    gram = chunked.gram(problem, theta, free) * np.outer(setup.scale[free], setup.scale[free])  # issue 33
     res = problem.residuals(theta)
     sigma2 = float(res @ res) / (len(res) - int(free.sum()))
-    std[free] = np.sqrt(np.clip(np.diag(np.linalg.pinv(jac.T @ jac) * sigma2), 0.0, None)) * setup.scale[free]
+    std[free] = np.sqrt(np.clip(np.diag(np.linalg.pinv(gram) * sigma2), 0.0, None)) * setup.scale[free]
 
     def stats(meas: Measurement, th: np.ndarray, on: Dataset | None) -> Any:
         return None if on is None else evaluate(mdl, meas, th, on, ext)

@@ -26,6 +26,7 @@ from .errors import DataError
 from .options import ORIENTATIONS
 from .robots import Robot
 from .threads import limited
+from .units import joints_from_file
 
 #: Shortest accepted orientation move [m].
 MIN_MOVE = 0.005
@@ -300,10 +301,7 @@ def read_flange_poses(
         raise DataError(f"unknown unit {units!r}: use m or mm")
     if robot is not None:
         q = read_table(path, robot.joint_names, f"the joints {', '.join(robot.joint_names)}", rename)
-        prismatic = np.array(robot.prismatic)
-        if degrees:
-            q[:, ~prismatic] = np.deg2rad(q[:, ~prismatic])
-        q[:, prismatic] *= UNITS[units]
+        q = joints_from_file(q, degrees, units, robot.prismatic)
         poses = [robot.frame_placement(qi) for qi in q]
         return np.array([m.rotation for m in poses]), np.array([m.translation for m in poses]) / UNITS[units]
     columns = csv_columns(path)

@@ -14,6 +14,7 @@ from .errors import PincalError
 from .readings import IMPROVEMENT
 from .robots import Robot
 from .tool import ToolCalibration, euler_zyx, tcp_position
+from .units import MAX_TOOL_M
 from .verdict import TOOL, Check, Verdict, robot_size
 
 #: TCP points' scatter / the flange positions' spread (the poses touch one point).
@@ -54,6 +55,9 @@ def judge_tool(
         "flange positions' spread, though every TCP pose touches one point"
     )
     checks = [Check("fit", ratio, TCP_FIT, "ratio", text)]
+    length = float(np.linalg.norm(tool.tcp)) / scale  # [m] (issue 33: the unit layer's bound)
+    text = f"the TCP is {length:.4g} m from the flange, more than any tool an arm carries ({MAX_TOOL_M:g} m)"
+    checks.append(Check("tool_size", length, MAX_TOOL_M, "m", text))
     size = robot_size(robot) if robot is not None else 0.0
     if robot is not None:
         reach = float(np.linalg.norm(tool.tcp)) / scale
@@ -76,6 +80,9 @@ def judge_tool(
         "R = Rz(a) Ry(b) Rx(c); or the quaternion's order: --quaternion-order), --orientation, and "
         "re-teach the poses flagged far from the others",
         "tool": "check the joint columns (units: --degrees) and --tip",
+        "tool_size": "the x,y,z columns look like millimetres: pass --units mm"
+        if unit == "m" and length * 1e-3 <= MAX_TOOL_M
+        else "check the unit of x,y,z (--units) and that every TCP pose touches one point",
     }
     return replace(verdict, cause=first.name, hint=f"{first.text}: {fixes[first.name]}")
 

@@ -35,6 +35,8 @@ from lxml import etree
 
 from .errors import DataError, RobotError
 from .files import atomic_write
+from .inputs import read_bytes
+from .json_text import json_text
 from .robots import Robot
 from .ur_frames import BASE_INERTIA, JOINTS, PARSER, URChain
 
@@ -134,11 +136,8 @@ def read_ur_kinematics(path: str | Path) -> URKinematics:
 
     path = Path(path)
     try:
-        if path.stat().st_size > _MAX_BYTES:
-            raise DataError(f"{path} is larger than 1 MB: is it a UR kinematics YAML?")
-        doc = yaml.load(path.read_text(encoding="utf-8"), Loader=_loader())  # a SafeLoader
-    except FileNotFoundError:
-        raise DataError(f"kinematics file not found: {path}") from None
+        text = read_bytes(path, "kinematics YAML", _MAX_BYTES).decode("utf-8")  # bounded (issue 33)
+        doc = yaml.load(text, Loader=_loader())  # a SafeLoader
     except RecursionError:  # brackets nested deeper than Python's stack
         raise DataError(f"cannot read the kinematics YAML {path}: nested too deeply") from None
     except (OSError, UnicodeDecodeError, yaml.YAMLError, ValueError) as exc:
@@ -232,5 +231,5 @@ def write_ur_kinematics(
     atomic_write(path, kinematics.to_yaml(header))
     extra = sidecar(cal, path.name)
     extra.update(urdf=None, ur_kinematics=path.name)
-    atomic_write(side, json.dumps(extra, indent=2) + "\n")
+    atomic_write(side, json_text(extra))
     return path, side

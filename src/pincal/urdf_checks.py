@@ -9,7 +9,8 @@ already cleared) and refuses, with one line naming the joint or link:
 - a root element that is not ``<robot>``, a link or joint without a name, or a name used twice;
 - a joint whose parent or child link is missing or undefined, or is both its parent and child;
 - a link that is the child of two joints, a closed loop, or more than one root link;
-- more than :data:`MAX_JOINTS` joints, or more than :data:`MAX_CHAIN` movable joints in a row;
+- more than :data:`MAX_JOINTS` movable joints, :data:`MAX_ALL_JOINTS` in all (fixed ones count
+  apart: marker frames), or more than :data:`MAX_CHAIN` movable joints in a row;
 - an origin, axis or limit that is not three (or one) finite numbers, an axis of zero length,
   limits with ``lower > upper``, or an origin or prismatic limit :data:`MAX_LENGTH` or more
   from zero (the kinematics overflow).
@@ -27,8 +28,10 @@ from pathlib import Path
 
 from .errors import RobotError
 
-#: Joints a URDF may hold (a humanoid with hands has about a hundred).
+#: Movable joints a URDF may hold (a humanoid with hands has about a hundred).
 MAX_JOINTS = 1000
+#: Joints a URDF may hold, fixed ones included (sensor and marker frames are fixed links).
+MAX_ALL_JOINTS = 20_000
 #: Movable joints on one path from the root (a serial arm has 5 to 10).
 MAX_CHAIN = 100
 #: Axis length under which an axis counts as zero.
@@ -60,9 +63,11 @@ def check_urdf_structure(text: str, path: str | Path) -> None:
     joints = root.findall(f"{ns}joint")
     if not links:
         raise RobotError(f"URDF {path} has no <link>: a robot needs links joined by joints")
-    if len(joints) > MAX_JOINTS:
-        raise RobotError(
-            f"URDF {path} has {len(joints)} joints, more than {MAX_JOINTS}: is it a robot arm's URDF?"
+    moving = sum(joint.get("type", "") in _MOVING for joint in joints)
+    if moving > MAX_JOINTS or len(joints) > MAX_ALL_JOINTS or (len(joints) > MAX_JOINTS and not moving):
+        raise RobotError(  # fixed joints (marker frames) count apart from movable ones (issue 33)
+            f"URDF {path} has {len(joints)} joints, {moving} of them movable: more than {MAX_JOINTS} "
+            f"movable, {MAX_ALL_JOINTS} in all, or {MAX_JOINTS} and none movable: is it a robot arm's URDF?"
         )
     _names(joints, "joint", path)
     parent_of: dict[str, tuple[str, str, bool]] = {}  # child link -> (joint, parent link, movable)
@@ -85,6 +90,62 @@ def check_urdf_structure(text: str, path: str | Path) -> None:
         parent_of[child] = (name, parent, kind in _MOVING)
         _check_joint(joint, name, kind, ns, path)
     _check_tree(links, parent_of, path)
+
+
+def without_default_namespace(text: str) -> str:
+    """The URDF ``text`` with its elements out of a default XML namespace (``<robot xmlns="...">``),
+    for the readers and writers that look elements up by their plain names (urdfdom ignores the
+    namespace: the robot is the same). A text without one, or not well-formed, is returned as it is.
+    """
+    head = text[: text.find(">", text.find("<robot")) + 1] if "<robot" in text else ""
+    if "xmlns" not in head:
+        return text
+    from lxml import etree  # here: the other texts need no second parse
+
+    parser = etree.XMLParser(resolve_entities=False, no_network=True, load_dtd=False, huge_tree=False)
+    try:
+        root = etree.fromstring(text.encode("utf-8"), parser)
+    except etree.XMLSyntaxError:
+        return text  # the structure check says what is wrong, naming the file
+    namespace = root.nsmap.get(None)
+    if namespace is None:
+        return text
+    for element in root.iter():
+        if isinstance(element.tag, str) and element.tag.startswith(f"{{{namespace}}}"):
+            element.tag = element.tag[len(namespace) + 2 :]
+    etree.cleanup_namespaces(root)
+    return str(etree.tostring(root.getroottree(), encoding="unicode"))
+
+
+class _Prolog(Exception):
+    """The parse reached the root element: the DOCTYPE, if any, is behind it."""
+
+
+def declares_dtd(text: str) -> bool:
+    """Whether the DOCTYPE names an external DTD (``SYSTEM``, ``PUBLIC``) or has an internal subset
+    (entity declarations), as an XML parser reads it: the words elsewhere (a link named
+    ``PUBLIC-display``, ``SYSTEM`` in a comment) do not count (issue 33). The parse stops at the
+    root element; a text expat cannot read is left to the URDF checks' message."""
+    import xml.parsers.expat
+
+    found: list[bool] = []
+
+    def doctype(_name: str, system: str | None, public: str | None, subset: int) -> None:
+        found.append(bool(system or public or subset))
+        raise _Prolog  # nothing past the DOCTYPE's opening is parsed (no entity is read)
+
+    def start(*_: object) -> None:
+        raise _Prolog
+
+    parser = xml.parsers.expat.ParserCreate()
+    parser.StartDoctypeDeclHandler, parser.StartElementHandler = doctype, start
+    try:
+        parser.Parse(text.encode("utf-8"), True)
+    except _Prolog:
+        pass
+    except xml.parsers.expat.ExpatError:
+        return "<!ENTITY" in text.upper()  # not XML: the structure check says so, unless it may expand
+    return any(found)
 
 
 def _check_tree(links: list[str], parent_of: dict[str, tuple[str, str, bool]], path: str | Path) -> None:

@@ -24,7 +24,6 @@ loading and network access off.
 
 from __future__ import annotations
 
-import json
 import re
 from pathlib import Path
 from typing import Any
@@ -36,6 +35,7 @@ from lxml import etree
 from .calibration import Calibration
 from .errors import DataError, PincalError
 from .files import atomic_write_many
+from .json_text import json_text
 from .kinematics import Chain, forward
 from .robots import Robot
 
@@ -285,4 +285,4 @@ def corrected_files(
     path = Path(path)
     check_output(path, cal.robot)
     text = corrected_urdf(cal, add_frame).decode("utf-8")
-    return [(path, text), (sidecar_path(path), json.dumps(sidecar(cal, path.name), indent=2) + "\n")]
+    return [(path, text), (sidecar_path(path), json_text(sidecar(cal, path.name)))]

@@ -3,15 +3,20 @@
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from ..calibration import Calibration
 from ..data import Dataset
 from ..errors import DataError
 from ..files import STDIN, atomic_write_many
+from ..large_choice import choose_on_subset, needs_subset, subset_note
 from ..outcome import Outcome, outcome
 from ..pipeline import calibrate
 from ..report import report_json
+from ..robots import Robot
 from ..summary_table import summary
 from ..ur_yaml import DEFAULT_DH, read_ur_kinematics, robot_ur_chain, write_ur_kinematics
 from ..urdf_writer import check_frame_name, corrected_files, sidecar_path
@@ -68,27 +73,18 @@ def default_extension(given: str | None, measure: str | None, data: Dataset) -> 
     return "none" if (measure or data.measured) == "points" else "auto"
 
 
-def run(args: argparse.Namespace) -> int:
-    """Run the command; 0 on success."""
-    _check_arguments(args)
-    robot = chain(args)
-    if ur_yaml_output(args):
-        robot_ur_chain(robot)  # refused before the fit, not after
-        if args.kinematics is None and args.robot in DEFAULT_DH:
-            print(f"{args.robot} in ur_description's frames, from its default kinematics (nominal)")
-    data = load_data(args.data, robot, args)
-    test = load_data(args.test, robot, args) if args.test is not None else None
-    check_applicable(args, data)
-    if args.holdout is not None:
-        data, test = data.split(args.holdout, args.seed)
-    args.extend = default_extension(args.extend, args.measure, data)
-    progress = progress_line("diagnosis") if args.extend == "auto" else None
-    cal = calibrate(
-        robot,
-        data,
-        args.model,
-        args.measure,
-        test=test,
+def _fit(
+    args: argparse.Namespace,
+    robot: Robot,
+    data: Dataset,
+    test: Dataset | None,
+    progress: Callable[[int, int, str], None] | None,
+) -> Calibration:
+    """The calibration the options ask for; above :data:`pincal.large_choice.CHOICE_POSES` poses
+    the automatic choice is made on a random subset, said first (issue 33)."""
+    options: dict[str, Any] = dict(
+        model=args.model,
+        measure=args.measure,
         pairs=args.pairs,
         params=args.params,
         extension=args.extend,
@@ -101,6 +97,34 @@ def run(args: argparse.Namespace) -> int:
         deliver="balanced" if args.geometry == "first" else "joint",
         **fit_options(args),
     )
+    if not needs_subset(data, args.params, args.extend):
+        return calibrate(robot, data, test=test, **options)
+    print(subset_note(data, args.seed))
+    chosen, options = choose_on_subset(calibrate, robot, data, **options)
+    return replace(calibrate(robot, data, test=test, **options), choice=chosen.choice)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the command; 0 on success."""
+    _check_arguments(args)
+    robot = chain(args)
+    if ur_yaml_output(args):
+        robot_ur_chain(robot)  # refused before the fit, not after
+        if args.kinematics is None and args.robot in DEFAULT_DH:
+            print(f"{args.robot} in ur_description's frames, from its default kinematics (nominal)")
+    data = load_data(args.data, robot, args)
+    test = load_data(args.test, robot, args) if args.test is not None else None
+    if test is not None and (test.labels is None) != (data.labels is None):  # issue 33
+        raise DataError(
+            f"--test {args.test} holds {test.measured} data and {args.data} {data.measured} data: "
+            "held-out poses are scored as the fit's, give a --test file of the same kind"
+        )
+    check_applicable(args, data)
+    if args.holdout is not None:
+        data, test = data.split(args.holdout, args.seed)
+    args.extend = default_extension(args.extend, args.measure, data)
+    progress = progress_line("diagnosis") if args.extend == "auto" else None
+    cal = _fit(args, robot, data, test, progress)
     end_progress(progress)
     verdict = plausible(cal, data, args)
     result = outcome(cal, data, test, args.noise, args.folds, args.seed)

@@ -17,6 +17,7 @@ from ..data import UNITS, Dataset, csv_columns, read_csv
 from ..errors import DataError, ImplausibleError, OutputError
 from ..files import STDIN, output_target
 from ..fixed_points import parse_point_distances
+from ..inputs import input_named
 from ..options import ROTATION_WEIGHT
 from ..plausibility import Verdict, judge_calibration
 from ..point_files import read_socket_folder
@@ -104,6 +105,9 @@ def check_outputs(args: argparse.Namespace, outputs: Sequence[Path | None], inpu
         for label, src in sources.items():
             if target.exists() and target.samefile(src):
                 raise DataError(f"{out} is the {label}: write the output to another file")
+        read = input_named(target)  # any file read so far: @FILE lists, xacro includes (issue 33)
+        if read is not None:
+            raise DataError(f"{out} is the {read} this run reads: write the output to another file")
         if target in seen:
             raise DataError(f"{out} is named for two outputs: give each its own file")
         seen.append(target)

@@ -52,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
             f"none of the {n} rows could be compensated ({result.failures()[0]}): check that the "
             "program is for this robot and within its limits"
         )
-    write_program(args.output, result, args.degrees, nominal.prismatic)
+    write_program(args.output, result, args.degrees, nominal.prismatic, args.units)
     worst = float(result.position_error[result.ok].max()) * 1e3
     print(f"compensated {int(result.ok.sum())} of {n} rows ({result.task} task, worst {worst:.4f} mm)")
     for line in result.failures():

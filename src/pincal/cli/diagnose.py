@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import argparse
-import json
-from typing import Any
 
 import numpy as np
 
 from ..data import atomic_write
 from ..errors import DataError, IdentifiabilityError
+from ..json_text import json_text
 from ..outcome import outcome
 from ..pipeline import calibrate
 from .common import (
@@ -81,18 +80,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"plot written to {path}")
     if args.json is not None:
         out = {**result.to_dict(), "plausibility": verdict.to_dict(), "residual": found.residual.to_dict()}
-        atomic_write(args.json, json.dumps(_finite(out), indent=2) + "\n")
+        atomic_write(args.json, json_text(out))
         print(f"written to {args.json}")
     print(found.verdict_line())
     return 0
 
-
-def _finite(obj: Any) -> Any:
-    """``obj`` with every non-finite float as None (JSON has no Infinity)."""
-    if isinstance(obj, float) and not np.isfinite(obj):
-        return None
-    if isinstance(obj, dict):
-        return {k: _finite(v) for k, v in obj.items()}
-    if isinstance(obj, list):
-        return [_finite(v) for v in obj]
-    return obj

@@ -57,7 +57,7 @@ def run(args: argparse.Namespace) -> int:
     print(plan.summary())
     for text in plan.warnings:
         warn(args, text)
-    write_poses(args.output, plan, args.degrees)
+    write_poses(args.output, plan, args.degrees, args.units)
     print(f"written to {args.output}")
     return 0
 
@@ -77,7 +77,7 @@ def read_task(path: Path, robot: Robot, args: argparse.Namespace) -> np.ndarray:
     Raises:
         DataError: missing file or columns, non-numeric cells, a value outside the limits.
     """
-    q = read_joints(path, robot, args.degrees)  # prismatic joints in metres, as -o writes them
+    q = read_joints(path, robot, args.degrees, args.units)  # prismatic joints in --units, as -o writes them
     try:
         beyond = check_limits(robot, Dataset(robot.joint_names, q, np.zeros((len(q), 3))), args.degrees)
     except DataError as exc:

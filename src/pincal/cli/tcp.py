@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import argparse
-import json
 
 import numpy as np
 
 from ..data import UNITS, atomic_write
 from ..errors import DataError, ImplausibleError
+from ..json_text import json_text
 from ..robots import load_robot
 from ..tool import calibrate_tool, read_flange_poses
 from ..tool_plausibility import judge_tool
@@ -19,6 +19,7 @@ def run(args: argparse.Namespace) -> int:
     """Run the command; 0 on success."""
     check_outputs(args, [args.json], {"poses file": args.poses, "input URDF": urdf_path(args.robot)})
     _robot_only(args)
+    _inapplicable(args)
     robot = load_robot(args.robot, tip=args.tip, **robot_options(args)) if args.robot else None
     rotations, positions = read_flange_poses(
         args.poses, args.units, args.columns, robot, args.degrees, args.quaternion_order
@@ -57,9 +58,23 @@ def run(args: argparse.Namespace) -> int:
             "warnings": list(tool.warnings),
             "plausibility": verdict.to_dict(),
         }
-        atomic_write(args.json, json.dumps(result, indent=2) + "\n")
+        atomic_write(args.json, json_text(result))
         print(f"written to {args.json}")
     return 0
+
+
+def _inapplicable(args: argparse.Namespace) -> None:
+    """Refuse the options ``tcp`` would ignore in silence (issue 33): ``--inertias`` (no gravity
+    torque is computed) and ``--quaternion-order`` for poses without quaternion columns."""
+    from ..data import csv_columns
+
+    named = ["--inertias"] if args.inertias is not None else []
+    if args.quaternion_order != "wxyz":
+        quaternion = {(args.columns or {}).get(c, c) for c in ("qw", "qx", "qy", "qz")}
+        if args.robot is not None or not quaternion <= set(csv_columns(args.poses)):
+            named.append("--quaternion-order (the poses have no quaternion columns)")
+    if named:
+        raise DataError(f"{'; '.join(named)}: not used by pincal tcp on these poses: drop it")
 
 
 def _robot_only(args: argparse.Namespace) -> None:

@@ -43,14 +43,15 @@ def parameters(text: str) -> str | tuple[str, ...]:
     if text in ("auto", "all"):
         return text
     if text.startswith("@"):
+        from ..errors import PincalError
+        from ..inputs import read_bytes  # a regular file, bounded, and an input of the run (issue 33)
+
         path = Path(text[1:])
         try:
-            with open(path, "rb") as fh:  # a list of names is small: /dev/zero would never end
-                data = fh.read(_MAX_LIST_BYTES + 1)
-            if len(data) > _MAX_LIST_BYTES:
-                raise argparse.ArgumentTypeError(f"the parameter list {path} is larger than 1 MB")
-            lines = data.decode("utf-8-sig").splitlines()
-        except (OSError, UnicodeDecodeError) as exc:
+            lines = read_bytes(path, "parameter list", _MAX_LIST_BYTES).decode("utf-8-sig").splitlines()
+        except PincalError as exc:
+            raise argparse.ArgumentTypeError(f"cannot read the parameter list {path}: {exc}") from None
+        except UnicodeDecodeError as exc:
             raise argparse.ArgumentTypeError(f"cannot read the parameter list {path}: {exc}") from None
         names = name_list(",".join(line.split("#", 1)[0] for line in lines))
     else:
