@@ -69,6 +69,7 @@ import csv
 import importlib.metadata
 import json
 import os
+import shlex
 import subprocess
 import sys
 import tempfile
@@ -93,6 +94,7 @@ ROBOTS_DIR = Path(
 OUTSIDE = ("bending", "drift", "sin3", "cubic")
 EFFECTS = ("rigid", *OUTSIDE, "pair")
 TIMEOUT_S = 600.0
+PINCAL = ["pincal"]  # the command; --pincal replaces it (e.g. "python -m pincal" on a snapshot's PYTHONPATH)
 
 
 @dataclass(frozen=True)
@@ -482,7 +484,7 @@ def run_pincal(args: list[str], out_json: Path, retry: bool = True) -> Call:
     start = time.perf_counter()
     try:
         proc = subprocess.run(
-            ["pincal", *args], capture_output=True, text=True, timeout=TIMEOUT_S, env=env, check=False
+            [*PINCAL, *args], capture_output=True, text=True, timeout=TIMEOUT_S, env=env, check=False
         )
         rc, stderr = proc.returncode, proc.stderr
     except subprocess.TimeoutExpired:
@@ -826,7 +828,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--jobs", type=int, default=1, help="cases run at once")
     parser.add_argument("--json", type=Path, help="write every result here")
     parser.add_argument("--keep", type=Path, help="keep the CSVs and JSONs in this folder")
+    parser.add_argument(
+        "--pincal",
+        default="pincal",
+        help="the pincal command (default 'pincal'; e.g. 'python -m pincal' with PYTHONPATH on a snapshot)",
+    )
     args = parser.parse_args(argv)
+    PINCAL[:] = shlex.split(args.pincal)
     if args.quick:
         args.robots, args.poses, args.multiples, args.seeds = ["ur5"], [60], [3.0, 10.0], 1
     robots = {name: Robot.load(SPECS[name]) for name in args.robots}

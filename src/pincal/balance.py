@@ -74,6 +74,8 @@ class Stacked:
         self.effect = np.arange(full.model.n_params, full.n_model)
         self.root = float(np.sqrt(min(weight, LARGE)))
         self.names, self.units, self.n_model = full.names, full.units, full.n_model
+        self.data = full.data
+        self.blockwise = False  # solved whole (pincal.chunked): its rows are the full problem's twice
 
     @property
     def n_params(self) -> int:
