@@ -19,6 +19,8 @@ from .robots import Robot
 
 if TYPE_CHECKING:
     from .choice import ModelChoice
+    from .guard import Guard
+    from .prior import PriorChoice
 
 
 @dataclass(frozen=True, eq=False)
@@ -47,6 +49,8 @@ class Calibration:
         excluded: outlier poses left out of the fit, as (row number, residual [mm]) pairs.
         choice: how the parameters and the extension were chosen (``params="auto"`` or
             ``extension="auto"``), else None.
+        prior: the pull toward the URDF: its weight and how it was chosen (:mod:`pincal.prior`).
+        guard: the fit judged against the nominal model on the fitted poses (:mod:`pincal.guard`).
     """
 
     model: Model
@@ -71,6 +75,8 @@ class Calibration:
     message: str
     excluded: tuple[tuple[int, float], ...] = ()
     choice: ModelChoice | None = None
+    prior: PriorChoice | None = None
+    guard: Guard | None = None
 
     @property
     def robot(self) -> Robot:

@@ -110,6 +110,8 @@ def calibrate(
     folds: int = 5, seed: int = 0,  # fmt: skip
     nested: bool | None = False,
     progress: Callable[[int, int, str], None] | None = None,
+    prior: float | str = "auto",
+    force_fit: bool = False,
 ) -> Calibration:
     """Identify a kinematic model from measurements.
 
@@ -136,6 +138,9 @@ def calibrate(
         folds, seed: K and seed of the cross-validation of ``extension="auto"`` and ``nested``.
         nested: with ``"auto"``, judge the whole procedure by K-fold cross-validation (choice
             and fit re-run without each fold): True, False, or None "when cheap" (``nested_policy``).
+        prior, force_fit: the pull toward the URDF, ``"auto"`` (chosen from ``data``,
+            :mod:`pincal.prior`) or a weight; export the fit even when the guard finds it not
+            reliably better than the nominal model (:mod:`pincal.guard`).
 
     Raises:
         DataError, IdentifiabilityError: unusable input (names, data), too little information.
@@ -147,6 +152,7 @@ def calibrate(
     options.update(rotation_weight=rotation_weight, point_distances=tuple(point_distances))
     fit_options: dict[str, Any] = dict(partial=partial, loss=loss, f_scale=f_scale, rcond=rcond)
     call = dict(options, **fit_options, params=params, extension=extension, payload=payload)
+    call.update(prior=prior, force_fit=force_fit)
     given = ext if isinstance(ext, Extension) else None
     setup = set_up(robot, data, model, measure, extension=given, **options)
     nominal, every = _checked(setup, wanted, fit_options)  # for "auto": refuse what "all" refuses
@@ -161,6 +167,10 @@ def calibrate(
             nominal, checked, every = None, False, None
         fit_options["partial"], wanted = partial or checked, choice.params
     theta, nominal, ident, result = fit(setup, wanted, nominal=nominal, every=every, **fit_options)
+    from .guard import protect  # here: the guard's cross-validation module imports this one
+
+    kept = protect(setup, nominal, ident.identifiable, prior, force_fit, loss, f_scale)
+    setup, theta, result = kept.setup, kept.theta, kept.result
     bad, scores = screen_outliers(setup, theta, ident.identifiable, outliers or 0.0, f_scale)
     if bad.size:  # leave them out and start again: the choice too is made on the poses kept
         rest = dict(test=test, folds=folds, seed=seed, nested=nested, progress=progress)
@@ -168,7 +178,8 @@ def calibrate(
     if nested is not False:
         judge = _judge(robot, data, model, measure, folds, seed, {**call, "outliers": outliers})
         choice = choice.with_nested(judge, nested is True, len(data))
-    return replace(assess(setup, theta, nominal, ident, result, test), choice=choice)
+    cal = assess(setup, theta, nominal, ident, result, test)
+    return replace(cal, choice=choice, prior=kept.prior, guard=kept.guard)
 
 
 def _without(

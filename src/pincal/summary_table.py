@@ -145,4 +145,5 @@ def summary(cal: Calibration, data: Dataset | None = None, test: Dataset | None 
             "all the others)"
         )
     lines += choice_lines(cal, data)
+    lines += [part.text() for part in (cal.prior, cal.guard) if part is not None]  # issue 31
     return "\n".join(lines + [f"warning: {w}" for w in report_warnings(cal, data, test, found)])

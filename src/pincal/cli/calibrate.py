@@ -97,6 +97,8 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed,
         nested=NESTED[args.nested],
         progress=progress,
+        prior=args.prior,
+        force_fit=args.force_fit,
         **fit_options(args),
     )
     end_progress(progress)
