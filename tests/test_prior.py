@@ -128,7 +128,8 @@ def test_guard_exports_the_nominal_geometry_when_the_urdf_is_true(name: str) -> 
     assert "do not support a calibration better than the nominal" in pincal.summary(cal, data)
     report = pincal.report_dict(cal)
     assert report["guard"]["exported"] == "nominal" and report["prior"]["chosen_by"] == "evidence"
-    forced = pincal.calibrate(robot, data, "placements", point_distances=DISTANCES, force_fit=True)
+    pull = pincal.Pull(force_fit=True)
+    forced = pincal.calibrate(robot, data, "placements", point_distances=DISTANCES, pull=pull)
     assert forced.guard is not None and forced.guard.kept_fit and forced.guard.forced
     assert not np.array_equal(forced.theta, forced.nominal_theta)
 
@@ -138,7 +139,7 @@ def test_guard_keeps_a_fit_of_position_data_with_real_errors() -> None:
     and a weight given is used and said so."""
     robot = _robot("ur5")
     _, fit, _ = pincal.simulate(robot, 60, 1, seed=4)
-    cal = pincal.calibrate(robot, fit, "placements", prior=0.02)
+    cal = pincal.calibrate(robot, fit, "placements", pull=pincal.Pull(0.02))
     assert cal.prior is not None and cal.prior.weight == 0.02 and cal.prior.chosen_by == "given"
     assert cal.guard is not None and cal.guard.reliable and cal.guard.kept_fit
     assert cal.guard.fit_cv_rms_mm < cal.guard.nominal_cv_rms_mm

@@ -17,15 +17,17 @@ and says so; ``force_fit=True`` (``--force-fit``) exports the fit anyway.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 from scipy.optimize import OptimizeResult
 
-from .crossval import held_out_rows
+from .calibration import Calibration
+from .data import Dataset
+from .identifiability import Identifiability
 from .prior import PriorChoice, choose_weight, pulled
-from .solver import Setup, solve
+from .solver import Setup, assess, solve
 
 #: The fit is kept when its validation gain over the nominal model is this many standard errors.
 Z_MIN = 2.0
@@ -91,6 +93,8 @@ class Guard:
 def loo_squared_errors(setup: Setup, theta: np.ndarray, free: np.ndarray) -> np.ndarray:
     """Each pose's squared leave-one-pose-out validation error [m²] of the fit ``theta`` over
     the unknowns ``free``, with the pull of ``setup.prior_weight`` on the geometric ones."""
+    from .crossval import held_out_rows  # here: crossval runs the pipeline, which runs this
+
     problem = setup.problem
     jac = problem.jacobian(theta, free) * setup.scale[free]
     res = problem.residuals(theta)
@@ -130,6 +134,8 @@ def judge(
 
 def _plain(setup: Setup, nominal: np.ndarray) -> np.ndarray:
     """Each pose's squared residual of the nominal model when nothing of it is fitted [m²]."""
+    from .crossval import held_out_rows  # here: crossval runs the pipeline, which runs this
+
     res = setup.problem.residuals(nominal)
     return np.array([float(res[rows] @ res[rows]) for rows in held_out_rows(setup.problem, None, 0)])
 
@@ -139,13 +145,36 @@ def _rms_mm(squared: np.ndarray) -> float:
     return float(np.sqrt(np.mean(squared))) * 1e3
 
 
+@dataclass(frozen=True)
+class Pull:
+    """How :func:`pincal.calibrate` holds the geometric corrections near the URDF, and when it
+    exports the fit.
+
+    Attributes:
+        weight: ``"auto"`` (chosen by maximum evidence on the fitted poses, :mod:`pincal.prior`)
+            or a weight [per natural unit: 0.1 m of correction weighs as a residual of 0.1 m x
+            weight].
+        force_fit: export the fit even when the guard finds it not reliably better than the
+            nominal model on its own validation (:func:`judge`).
+    """
+
+    weight: float | str = "auto"
+    force_fit: bool = False
+
+
+#: ``pincal calibrate``'s default: the weight chosen from the data, the guard on.
+DEFAULT_PULL = Pull()
+
+
 @dataclass(frozen=True, eq=False)
 class Protected:
     """A fit with its pull chosen and judged: what :func:`pincal.calibrate` exports.
 
     Attributes:
         setup: the problem carrying the chosen pull's weight.
-        theta: the exported θ: the fit, or the nominal one when the guard refused the fit.
+        theta: the exported θ: the fit, or ``nominal`` when the guard refused the fit.
+        nominal: the registration-only θ (nominal geometry; registration, tool, points fitted).
+        identifiability: the identifiable set the fit used.
         result: the solver's result of the fit.
         prior: the pull's weight and how it was chosen.
         guard: the fit judged against the nominal model.
@@ -153,17 +182,28 @@ class Protected:
 
     setup: Setup
     theta: np.ndarray
+    nominal: np.ndarray
+    identifiability: Identifiability
     result: OptimizeResult
     prior: PriorChoice
     guard: Guard
+
+    @property
+    def free(self) -> np.ndarray:
+        """Mask of the fitted unknowns."""
+        return self.identifiability.identifiable
+
+    def assessed(self, test: Dataset | None = None) -> Calibration:
+        """The calibration record (:func:`pincal.solver.assess`) with the pull and the guard."""
+        cal = assess(self.setup, self.theta, self.nominal, self.identifiability, self.result, test)
+        return replace(cal, prior=self.prior, guard=self.guard)
 
 
 def protect(
     setup: Setup,
     nominal: np.ndarray,
-    free: np.ndarray,
-    prior: float | str = "auto",
-    force_fit: bool = False,
+    ident: Identifiability,
+    pull: Pull = DEFAULT_PULL,
     loss: str = "linear",
     f_scale: float = 1e-4,
 ) -> Protected:
@@ -173,14 +213,15 @@ def protect(
     Args:
         setup: the problem.
         nominal: the registration-only θ (the start).
-        free: mask of the unknowns to fit.
-        prior: ``auto`` or a weight [per natural unit].
-        force_fit: export the fit whatever the guard says.
+        ident: the identifiable set: the unknowns to fit.
+        pull: the weight (``auto`` or given) and ``force_fit``.
         loss, f_scale: the fit's loss and where it down-weights [m] (the weight is chosen with
             the plain least squares of the evidence's Gaussian model).
     """
-    choice, chosen, theta, result = choose_weight(setup, nominal, free, prior, loss)
+    free = ident.identifiable
+    choice, chosen, theta, result = choose_weight(setup, nominal, free, pull.weight, loss)
     if loss != "linear":
         theta, result = solve(chosen, nominal, free, loss, f_scale)
-    verdict = judge(chosen, theta, nominal, free, force_fit)
-    return Protected(chosen, theta if verdict.kept_fit else nominal, result, choice, verdict)
+    verdict = judge(chosen, theta, nominal, free, pull.force_fit)
+    kept = theta if verdict.kept_fit else nominal
+    return Protected(chosen, kept, nominal, ident, result, choice, verdict)

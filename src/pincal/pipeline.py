@@ -20,15 +20,14 @@ from .data import Dataset
 from .effects import Extension, Payload
 from .errors import DataError
 from .fixed_points import PointDistance
+from .guard import DEFAULT_PULL, Protected, Pull, protect
 from .identifiability import RCOND, Identifiability
 from .measurements import ROTATION_WEIGHT
 from .models import Model
 from .options import LOSSES
 from .robots import Robot
-from .solver import Setup, assess, identifiable_set, register, screen_outliers, set_up, solve
+from .solver import Setup, identifiable_set, register, screen_outliers, set_up
 from .threads import limited
-
-Fit = tuple[np.ndarray, np.ndarray, Identifiability, Any]
 
 
 def fit(
@@ -41,15 +40,27 @@ def fit(
     rcond: float = RCOND,
     nominal: np.ndarray | None = None,
     every: Identifiability | None = None,
-) -> Fit:
+    pull: Pull = DEFAULT_PULL,
+) -> Protected:
     """Register (unless the registration-only θ ``nominal`` is given), find the identifiable set
     (``every``, when given, is the one of every parameter at ``nominal``: used for ``params``
-    None), solve: θ, the registration-only θ, the set, the solver's result."""
+    None), choose the pull toward the URDF and solve, and judge the fit against the nominal model
+    (:func:`pincal.guard.protect`)."""
     nominal = register(setup) if nominal is None else nominal
     known = every if params is None else None
     ident = identifiable_set(setup, nominal, params, partial, rcond) if known is None else known
-    theta, result = solve(setup, nominal, ident.identifiable, loss, f_scale)
-    return theta, nominal, ident, result
+    return protect(setup, nominal, ident, pull, loss, f_scale)
+
+
+def fit_options_of(partial: bool, loss: str, f_scale: float, rcond: float) -> dict[str, Any]:
+    """The keyword arguments of :func:`fit` (the loss checked).
+
+    Raises:
+        DataError: an unknown loss.
+    """
+    if loss not in LOSSES:
+        raise DataError(f"unknown loss {loss!r}: choose one of {', '.join(LOSSES)}")
+    return dict(partial=partial, loss=loss, f_scale=f_scale, rcond=rcond)
 
 
 def parse_params(params: Sequence[str] | str | None) -> tuple[str, ...] | str | None:
@@ -110,8 +121,7 @@ def calibrate(
     folds: int = 5, seed: int = 0,  # fmt: skip
     nested: bool | None = False,
     progress: Callable[[int, int, str], None] | None = None,
-    prior: float | str = "auto",
-    force_fit: bool = False,
+    pull: Pull = DEFAULT_PULL,
 ) -> Calibration:
     """Identify a kinematic model from measurements.
 
@@ -138,21 +148,16 @@ def calibrate(
         folds, seed: K and seed of the cross-validation of ``extension="auto"`` and ``nested``.
         nested: with ``"auto"``, judge the whole procedure by K-fold cross-validation (choice
             and fit re-run without each fold): True, False, or None "when cheap" (``nested_policy``).
-        prior, force_fit: the pull toward the URDF, ``"auto"`` (chosen from ``data``,
-            :mod:`pincal.prior`) or a weight; export the fit even when the guard finds it not
-            reliably better than the nominal model (:mod:`pincal.guard`).
+        pull: the pull toward the URDF, and when the fit is exported (:class:`~pincal.guard.Pull`).
 
     Raises:
         DataError, IdentifiabilityError: unusable input (names, data), too little information.
     """
-    if loss not in LOSSES:
-        raise DataError(f"unknown loss {loss!r}: choose one of {', '.join(LOSSES)}")
     wanted, ext = parse_params(params), parse_extension(robot, extension, payload)
     options: dict[str, Any] = dict(instrument_T_base=instrument_T_base, tool=tool, pairs=pairs)
     options.update(rotation_weight=rotation_weight, point_distances=tuple(point_distances))
-    fit_options: dict[str, Any] = dict(partial=partial, loss=loss, f_scale=f_scale, rcond=rcond)
-    call = dict(options, **fit_options, params=params, extension=extension, payload=payload)
-    call.update(prior=prior, force_fit=force_fit)
+    fit_options = fit_options_of(partial, loss, f_scale, rcond)
+    call = dict(options, **fit_options, params=params, extension=extension, payload=payload, pull=pull)
     given = ext if isinstance(ext, Extension) else None
     setup = set_up(robot, data, model, measure, extension=given, **options)
     nominal, every = _checked(setup, wanted, fit_options)  # for "auto": refuse what "all" refuses
@@ -166,20 +171,15 @@ def calibrate(
             setup = set_up(robot, data, model, measure, extension=choice.extension, **options)
             nominal, checked, every = None, False, None
         fit_options["partial"], wanted = partial or checked, choice.params
-    theta, nominal, ident, result = fit(setup, wanted, nominal=nominal, every=every, **fit_options)
-    from .guard import protect  # here: the guard's cross-validation module imports this one
-
-    kept = protect(setup, nominal, ident.identifiable, prior, force_fit, loss, f_scale)
-    setup, theta, result = kept.setup, kept.theta, kept.result
-    bad, scores = screen_outliers(setup, theta, ident.identifiable, outliers or 0.0, f_scale)
+    found = fit(setup, wanted, nominal=nominal, every=every, pull=pull, **fit_options)
+    bad, scores = screen_outliers(found.setup, found.theta, found.free, outliers or 0.0, f_scale)
     if bad.size:  # leave them out and start again: the choice too is made on the poses kept
         rest = dict(test=test, folds=folds, seed=seed, nested=nested, progress=progress)
         return _without(robot, data, model, measure, bad, scores, {**call, **rest})
     if nested is not False:
         judge = _judge(robot, data, model, measure, folds, seed, {**call, "outliers": outliers})
         choice = choice.with_nested(judge, nested is True, len(data))
-    cal = assess(setup, theta, nominal, ident, result, test)
-    return replace(cal, choice=choice, prior=kept.prior, guard=kept.guard)
+    return replace(found.assessed(test), choice=choice)
 
 
 def _without(

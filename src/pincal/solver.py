@@ -53,7 +53,6 @@ SETUP_KEYS = ("instrument_T_base", "tool", "rotation_weight", "pairs", "point_di
 #: or the rotation that moves the workspace by 1 m): 0.1 m of correction weighs as one residual of
 #: 0.15 mm. Where data can hardly tell corrections apart (the last joint's placement against a ball
 #: on its axis), it keeps the fit from wandering decimetres and radians away for micrometres.
-#: :func:`pincal.calibrate` chooses it from the data (:mod:`pincal.prior`) unless told.
 PRIOR_WEIGHT = 1.5e-3
 
 
@@ -67,8 +66,7 @@ class Setup:
         scale: natural size of each unknown (1 for metres, 1/length for radians, an effect's
             size that moves the tip by 1 mm at the workspace's length).
         tool: the tool as given (the tip frame's origin when unknown): the "URDF as is" tool.
-        prior_weight: weight of the rows holding the geometric corrections near the URDF, per
-            natural unit (see :data:`PRIOR_WEIGHT`; chosen from the data by :mod:`pincal.prior`).
+        prior_weight: the pull toward the URDF (:data:`PRIOR_WEIGHT`, or :mod:`pincal.prior`'s).
     """
 
     problem: Problem

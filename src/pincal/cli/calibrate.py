@@ -26,6 +26,7 @@ from .common import (
     ur_yaml_output,
     urdf_path,
 )
+from .pull_options import pull
 
 #: ``--nested`` -> the ``nested`` argument of :func:`pincal.calibrate`.
 NESTED = {"auto": None, "yes": True, "no": False}
@@ -97,8 +98,7 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed,
         nested=NESTED[args.nested],
         progress=progress,
-        prior=args.prior,
-        force_fit=args.force_fit,
+        pull=pull(args),
         **fit_options(args),
     )
     end_progress(progress)

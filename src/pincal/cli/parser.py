@@ -20,6 +20,7 @@ from ..options import (
     UNITS,
 )
 from .numeric import count, folds, fraction, height, reach, rotation_weight, seed, sigmas, threads
+from .pull_options import add_pull_options
 from .values import mapping, name_list, parameters, payload, vector3, vectors3
 
 
@@ -91,27 +92,8 @@ def _add_calibrate(sub: Any) -> None:
     cal.add_argument(
         "--pairs", choices=["all", "gao"], default="all", help="pose pairs for --measure distance"
     )
-    _add_prior_options(cal)
+    add_pull_options(cal)  # issue 31
     _add_force(cal)
-
-
-def _add_prior_options(cal: argparse.ArgumentParser) -> None:
-    """``--prior`` and ``--force-fit`` of ``pincal calibrate`` (issue 31: :mod:`pincal.prior`,
-    :mod:`pincal.guard`)."""
-    cal.add_argument(
-        "--prior",
-        default="auto",
-        metavar="auto|WEIGHT",
-        help="pull of the geometric corrections toward the URDF: 'auto' (default) chooses its weight by "
-        "maximum evidence on the data; or a weight per natural unit (0.1 m of correction weighs as a "
-        "residual of 0.1 m x WEIGHT)",
-    )
-    cal.add_argument(
-        "--force-fit",
-        action="store_true",
-        help="export the fit even when its leave-one-out validation is not reliably better than the "
-        "nominal model's (by default the nominal geometry is then exported, said in the summary)",
-    )
 
 
 def _add_diagnose(sub: Any) -> None:
