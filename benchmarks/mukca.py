@@ -347,8 +347,8 @@ def main() -> None:
     more = "(run without --protocol-only for the other tables)"
     if not args.protocol_only:
         more = table(rows, causes, pools)
-        named = "; ".join(suspects) or "none"
-        more += f"\n\nplacements a robot's calibration on every placement names as suspect: {named}"
+        listed = "; ".join(suspects) or "none"
+        more += f"\n\nplacements a robot's calibration on every placement names as suspect: {listed}"
         if args.synthetic:
             more += "\n" + rigid_table(root, rows, floors, args.model)
         print("\n" + more)

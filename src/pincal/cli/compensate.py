@@ -26,7 +26,7 @@ def run(args: argparse.Namespace) -> int:
     description = {k: v for k, v in options.items() if k != "kinematics"}  # a YAML's base robot
     cal = load_calibration(args.calibration, nominal=args.robot, **description)
     nominal = load_robot(args.robot, tip=cal.robot.tip, joints=cal.robot.joint_names, **options)
-    program = read_program(args.program, nominal, args.degrees, args.units)
+    program = read_program(args.program, nominal, args.degrees, args.units, args.quaternion_order)
     header = csv_columns(args.program)
     targets = [c for c in ("x", "y", "z", "qw", "qx", "qy", "qz") if c in header]
     if not isinstance(program, Targets) and targets:

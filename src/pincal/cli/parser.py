@@ -19,6 +19,7 @@ from ..options import (
     THRESHOLD,
     UNITS,
 )
+from .data_options import add_lock, add_program_quaternion_order
 from .numeric import count, folds, fraction, height, reach, rotation_weight, seed, sigmas, threads
 from .pull_options import add_pull_options
 from .values import mapping, name_list, parameters, payload, vector3, vectors3
@@ -134,6 +135,7 @@ def _add_tcp(sub: Any) -> None:
     tcp.add_argument("--tip", help="with --robot: the flange frame (default: the robot's tip)")
     tcp.add_argument("--degrees", action="store_true", help="with --robot: joint values in degrees")
     _add_robot_options(tcp, "--robot")
+    add_lock(tcp)  # issue 31
     _add_plausibility_options(tcp)
     _add_force(tcp)
 
@@ -158,6 +160,7 @@ def _add_compensate(sub: Any) -> None:
     comp.add_argument("--task", choices=["pose", "position"], help="default: pose after pose data")
     comp.add_argument("--degrees", action="store_true", help="revolute joint values in degrees (in and out)")
     comp.add_argument("--units", choices=sorted(UNITS), default="m", help="unit of x,y,z targets, prismatic")
+    add_program_quaternion_order(comp)  # issue 31
     _add_force(comp)
 
 
