@@ -357,7 +357,12 @@ def main() -> None:
     print(f"whole benchmark {time.perf_counter() - start:.0f} s")
     if args.markdown is not None:
         flags = " --protocol-only" if args.protocol_only else ""
-        write_page(args.markdown, pairs, more, f"python benchmarks/mukca.py ../shared/datasets{flags}")
+        write_page(
+            args.markdown,
+            pairs,
+            more,
+            f"python benchmarks/mukca.py ../shared/datasets{flags} --markdown PAGE",
+        )
     if args.json is not None:
         write_json(args.json, rows, pools)
 
