@@ -127,7 +127,7 @@ def judge(
     base = loo_squared_errors(setup, nominal, registration) if registration.any() else _plain(setup, nominal)
     gain = base - fit
     stderr = float(np.std(gain, ddof=1) / np.sqrt(len(gain))) if len(gain) > 1 else 0.0
-    z = float(np.mean(gain) / stderr) if stderr > 0 else (np.inf if np.mean(gain) > 0 else 0.0)
+    z = float(np.mean(gain) / stderr) if stderr > 0 else 0.0  # no spread: nothing but the registration moved
     reliable = z > Z_MIN
     return Guard(_rms_mm(fit), _rms_mm(base), z, reliable or forced, forced)
 
