@@ -178,6 +178,9 @@ class Protected:
         result: the solver's result of the fit.
         prior: the pull's weight and how it was chosen.
         guard: the fit judged against the nominal model.
+        screening: the problem and fit the outliers are screened on: the default pull's fit
+            (:data:`pincal.solver.PRIOR_WEIGHT`) when the weight is chosen, as its choice is made
+            for Gaussian residuals and gross outliers would inflate it; else the fit.
     """
 
     setup: Setup
@@ -187,6 +190,7 @@ class Protected:
     result: OptimizeResult
     prior: PriorChoice
     guard: Guard
+    screening: tuple[Setup, np.ndarray]
 
     @property
     def free(self) -> np.ndarray:
@@ -203,6 +207,7 @@ def protect(
     setup: Setup,
     nominal: np.ndarray,
     ident: Identifiability,
+    base: np.ndarray,
     pull: Pull = DEFAULT_PULL,
     loss: str = "linear",
     f_scale: float = 1e-4,
@@ -212,16 +217,18 @@ def protect(
 
     Args:
         setup: the problem.
-        nominal: the registration-only θ (the start).
+        nominal: the registration-only θ.
         ident: the identifiable set: the unknowns to fit.
+        base: the fit at the default pull (:data:`pincal.solver.PRIOR_WEIGHT`) with ``loss``.
         pull: the weight (``auto`` or given) and ``force_fit``.
         loss, f_scale: the fit's loss and where it down-weights [m] (the weight is chosen with
             the plain least squares of the evidence's Gaussian model).
     """
     free = ident.identifiable
-    choice, chosen, theta, result = choose_weight(setup, nominal, free, pull.weight, loss)
+    choice, chosen, theta, result = choose_weight(setup, base, free, pull.weight, loss)
     if loss != "linear":
-        theta, result = solve(chosen, nominal, free, loss, f_scale)
+        theta, result = solve(chosen, base, free, loss, f_scale)
     verdict = judge(chosen, theta, nominal, free, pull.force_fit)
     kept = theta if verdict.kept_fit else nominal
-    return Protected(chosen, kept, nominal, ident, result, choice, verdict)
+    screening = (setup, base) if choice.chosen_by == "evidence" else (chosen, theta)
+    return Protected(chosen, kept, nominal, ident, result, choice, verdict, screening)

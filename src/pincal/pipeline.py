@@ -26,7 +26,7 @@ from .measurements import ROTATION_WEIGHT
 from .models import Model
 from .options import LOSSES
 from .robots import Robot
-from .solver import Setup, identifiable_set, register, screen_outliers, set_up
+from .solver import Setup, identifiable_set, register, screen_outliers, set_up, solve
 from .threads import limited
 
 
@@ -49,7 +49,8 @@ def fit(
     nominal = register(setup) if nominal is None else nominal
     known = every if params is None else None
     ident = identifiable_set(setup, nominal, params, partial, rcond) if known is None else known
-    return protect(setup, nominal, ident, pull, loss, f_scale)
+    base, _ = solve(setup, nominal, ident.identifiable, loss, f_scale)  # at the default pull
+    return protect(setup, nominal, ident, base, pull, loss, f_scale)
 
 
 def fit_options_of(partial: bool, loss: str, f_scale: float, rcond: float) -> dict[str, Any]:
@@ -172,7 +173,7 @@ def calibrate(
             nominal, checked, every = None, False, None
         fit_options["partial"], wanted = partial or checked, choice.params
     found = fit(setup, wanted, nominal=nominal, every=every, pull=pull, **fit_options)
-    bad, scores = screen_outliers(found.setup, found.theta, found.free, outliers or 0.0, f_scale)
+    bad, scores = screen_outliers(*found.screening, found.free, outliers or 0.0, f_scale)
     if bad.size:  # leave them out and start again: the choice too is made on the poses kept
         rest = dict(test=test, folds=folds, seed=seed, nested=nested, progress=progress)
         return _without(robot, data, model, measure, bad, scores, {**call, **rest})

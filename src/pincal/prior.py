@@ -10,7 +10,7 @@ fit in that direction is ``w``'s choice alone, and too weak a pull follows the n
 
 :func:`choose_weight` scores each weight of :data:`WEIGHTS` by its evidence (marginal
 likelihood, MacKay 1992), ``σ`` profiled out, and fits the model at the one of largest evidence.
-Linearised at a fit (the weakest pull's; each weight's fit a Gauss-Newton step from it), with
+Linearised at a fit (the default pull's; each weight's fit a Gauss-Newton step from it), with
 ``J`` the Jacobian of the residuals in natural units over the ``k`` fitted unknowns
 (``p`` of them pulled), ``n`` residuals and ``S = |r|² + w²|δ|²``::
 
@@ -113,7 +113,8 @@ def choose_weight(
 
     Args:
         setup: the problem.
-        start: the registration-only θ (the start of every fit).
+        start: the fit at ``setup.prior_weight`` (the default pull): the scan's linearisation
+            point and the start of the fit at the chosen weight.
         free: mask of the unknowns to fit.
         prior: ``auto`` (maximum evidence over :data:`WEIGHTS`) or a weight [per natural unit].
         loss: the fit's loss: the evidence is that of Gaussian residuals, so with a robust loss
@@ -126,11 +127,9 @@ def choose_weight(
         return _fixed(setup, start, free, setup.prior_weight, "default (robust loss: no Gaussian evidence)")
     if given is not None:
         return _fixed(setup, start, free, given, "given")
-    weak = replace(setup, prior_weight=WEIGHTS[0])
-    theta, result = solve(weak, start, free)
-    scores = evidence_curve(weak, theta, free, WEIGHTS)
+    scores = evidence_curve(setup, start, free, WEIGHTS)
     chosen = replace(setup, prior_weight=WEIGHTS[int(np.argmax(scores))])
-    theta, result = solve(chosen, theta, free)
+    theta, result = solve(chosen, start, free)
     return PriorChoice(chosen.prior_weight, "evidence", tuple(zip(WEIGHTS, scores))), chosen, theta, result
 
 

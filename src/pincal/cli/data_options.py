@@ -8,12 +8,14 @@ measurements: both commands refuse them as unknown options (one ``pincal: error:
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING
 
 from ..errors import DataError
 from ..options import QUATERNION_ORDERS
-from ..robots import Robot, load_robot
-from .common import robot_options
 from .values import name_list
+
+if TYPE_CHECKING:
+    from ..robots import Robot
 
 
 def add_lock(cmd: argparse.ArgumentParser) -> None:
@@ -45,6 +47,9 @@ def locked_robot(args: argparse.Namespace) -> Robot:
     Raises:
         DataError: a locked joint not in the chain, or every joint locked.
     """
+    from ..robots import load_robot  # here: --help loads no NumPy
+    from .common import robot_options
+
     chain = load_robot(args.robot, tip=args.tip, **robot_options(args))
     unknown = [j for j in args.lock if j not in chain.joint_names]
     if unknown:

@@ -4,12 +4,16 @@
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING
 
-from ..guard import Pull
+if TYPE_CHECKING:
+    from ..guard import Pull
 
 
 def pull(args: argparse.Namespace) -> Pull:
     """The :class:`~pincal.guard.Pull` the options ask for (the weight is checked by the fit)."""
+    from ..guard import Pull  # here: --help loads no NumPy
+
     return Pull(args.prior, args.force_fit)
 
 
