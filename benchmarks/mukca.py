@@ -15,10 +15,14 @@ placement out, it calibrates on all the others at once (a folder of the placemen
 floor: one model fitted on every placement, judged on each (what a model can reach at best on
 the data it was fitted to). It saves a plot of every placement's held-out error before and after.
 
+It prints first the protocol's summary per robot beside MUKCa's own figures (median and worst
+held-out MAE, pairs worse than the URDF as is, the pull's weight chosen, the guard's refusals:
+:mod:`mukca_results`), and ``--markdown`` writes it with the other tables as the results page.
+
 Usage::
 
     python benchmarks/mukca.py DATASETS_DIR [--plot PNG] [--json FILE] [--model placements]
-        [--markdown docs/results/generated/mukca.md]
+        [--protocol-only] [--markdown docs/results/mukca.md]
 """
 
 from __future__ import annotations
@@ -30,7 +34,6 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import json  # noqa: E402
-import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
 from collections import Counter  # noqa: E402
@@ -39,7 +42,7 @@ from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
-from markdown_page import command_line, write_page  # noqa: E402
+from mukca_results import Pair, protocol_rows, worse_pairs, write_page  # noqa: E402
 
 import pincal  # noqa: E402
 from pincal.diagnose import diagnose  # noqa: E402
@@ -65,6 +68,13 @@ class Judged:
     urdf: ErrorStats
     after: ErrorStats
     seconds: float
+    weight: float
+    kept_fit: bool
+
+    def pair(self) -> Pair:
+        """The protocol's record of this pair."""
+        urdf, after = float(self.urdf.point_mae_mm or 0.0), float(self.after.point_mae_mm or 0.0)
+        return Pair(self.robot, self.train, self.test, urdf, after, self.weight, self.kept_fit, self.seconds)
 
 
 @dataclass(frozen=True)
@@ -118,9 +128,12 @@ def pooled(
     return out, suspects, every
 
 
-def judge(robot_dir: Path, urdf: Path, model: str, extend: str = "none") -> tuple[list[Judged], Counter[str]]:
+def judge(
+    robot_dir: Path, urdf: Path, model: str, extend: str = "none", named: bool = True
+) -> tuple[list[Judged], Counter[str]]:
     """Calibrate on each placement, judge on the others; what diagnose names per placement (for
-    the Pandas, whose URDF has no masses, with the bundled Panda's: ``--inertias panda``)."""
+    the Pandas, whose URDF has no masses, with the bundled Panda's: ``--inertias panda``), unless
+    not ``named``."""
     robot = pincal.load_robot(urdf, tip="ball_link")
     panda = robot_dir.name.startswith("panda")
     masses = pincal.load_robot(urdf, tip="ball_link", inertias="panda") if panda else None
@@ -134,13 +147,16 @@ def judge(robot_dir: Path, urdf: Path, model: str, extend: str = "none") -> tupl
             robot if extend == "none" else masses or robot, data, model, extension=extend, **OPTIONS
         )
         seconds = time.perf_counter() - start
-        found = diagnose(masses or robot, data, model, point_distances=DISTANCE)
-        causes[found.cause.extension.label if found.cause is not None else "none"] += 1
+        if named:
+            found = diagnose(masses or robot, data, model, point_distances=DISTANCE)
+            causes[found.cause.extension.label if found.cause is not None else "none"] += 1
+        weight = cal.prior.weight if cal.prior is not None else float("nan")
+        kept = cal.guard is None or cal.guard.kept_fit
         for test, held in places.items():
             if test != train:
                 urdf_err = evaluate(cal.model, cal.urdf_measurement, cal.urdf_theta, held, cal.extension)
                 after = evaluate(cal.model, cal.measurement, cal.theta, held, cal.extension)
-                out.append(Judged(robot_dir.name, train, test, urdf_err, after, seconds))
+                out.append(Judged(robot_dir.name, train, test, urdf_err, after, seconds, weight, kept))
     return out, causes
 
 
@@ -273,27 +289,40 @@ def plot(rows: list[Judged], path: Path) -> None:
     plt.close(fig)
 
 
-def main() -> None:
+def arguments() -> argparse.Namespace:
+    """The command line."""
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("datasets", type=Path, help="the shared datasets folder (holding mukca/)")
     parser.add_argument("--model", default="placements", choices=pincal.MODELS)
     parser.add_argument("--plot", type=Path, default=FIGURE)
-    parser.add_argument(
-        "--extend",
-        choices=["none", "auto"],
-        default="none",
-        help="calibrate with --extend auto (Pandas: with masses)",
-    )
+    parser.add_argument("--extend", choices=["none", "auto"], default="none", help="(Pandas: with masses)")
     parser.add_argument("--json", type=Path, help="write every judged combination here")
     parser.add_argument(
-        "--synthetic",
-        action="store_true",
-        help="also the one-placement protocol on rows made again from the floor model",
+        "--synthetic", action="store_true", help="also on rows made again from the floor model"
     )
-    parser.add_argument("--markdown", type=Path, metavar="MD", help="also write the tables as Markdown here")
-    args = parser.parse_args()
+    parser.add_argument(
+        "--protocol-only", action="store_true", help="the protocol alone (no diagnosis, pooling, plot)"
+    )
+    parser.add_argument("--markdown", type=Path, help="write the results page here (docs/results/mukca.md)")
+    return parser.parse_args()
+
+
+def write_json(path: Path, rows: list[Judged], pools: list[Pooled]) -> None:
+    """Every judged combination, and every placement left out of a pooled calibration."""
+    record: list[dict[str, Any]] = [
+        {**vars(r.pair()), "urdf": r.urdf.to_dict(), "after": r.after.to_dict()} for r in rows
+    ]
+    record += [
+        {"robot": p.robot, "left_out": p.test, "held": p.held.to_dict(), "floor": p.floor.to_dict()}
+        for p in pools
+    ]
+    path.write_text(json.dumps(record, indent=1))
+
+
+def main() -> None:
+    args = arguments()
     root = args.datasets / "mukca"
     start = time.perf_counter()
     rows: list[Judged] = []
@@ -304,40 +333,38 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as folder:
         for robot_dir in sorted((root / "data").iterdir()):
             urdf = root / "urdf" / URDFS[robot_dir.name.split("_")[0]]
-            judged, causes[robot_dir.name] = judge(robot_dir, urdf, args.model, args.extend)
+            judged, causes[robot_dir.name] = judge(
+                robot_dir, urdf, args.model, args.extend, not args.protocol_only
+            )
             rows += judged
-            pool, named, floors[robot_dir.name] = pooled(robot_dir, urdf, args.model, Path(folder))
-            pools += pool
-            suspects += named
-    printed = [table(rows, causes, pools)]
-    listed = "; ".join(suspects) or "none"
-    printed.append(f"\nplacements a robot's calibration on every placement names as suspect: {listed}")
-    if args.synthetic:
-        printed.append(rigid_table(root, rows, floors, args.model))
-    print("\n".join(printed))
+            if not args.protocol_only:
+                pool, named, floors[robot_dir.name] = pooled(robot_dir, urdf, args.model, Path(folder))
+                pools += pool
+                suspects += named
+    pairs = [r.pair() for r in rows]
+    print("\n".join(protocol_rows(pairs)))
+    print("\npairs worse than the URDF as is: " + ("; ".join(worse_pairs(pairs)) or "none"))
+    more = "(run without --protocol-only for the other tables)"
+    if not args.protocol_only:
+        more = table(rows, causes, pools)
+        listed = "; ".join(suspects) or "none"
+        more += f"\n\nplacements a robot's calibration on every placement names as suspect: {listed}"
+        if args.synthetic:
+            more += "\n" + rigid_table(root, rows, floors, args.model)
+        print("\n" + more)
+        plot(rows, args.plot)
+        print(f"\nplot: {args.plot}")
+    print(f"whole benchmark {time.perf_counter() - start:.0f} s")
     if args.markdown is not None:
-        command = command_line("mukca.py", sys.argv[1:], {str(args.datasets).rstrip("/"): "DATASETS_DIR"})
-        pages = [text.replace(str(root), "DATASETS_DIR/mukca") for text in printed]
-        write_page(args.markdown, command, pages)
-    plot(rows, args.plot)
-    print(f"\nplot: {args.plot}; whole benchmark {time.perf_counter() - start:.0f} s")
+        flags = " --protocol-only" if args.protocol_only else ""
+        write_page(
+            args.markdown,
+            pairs,
+            more,
+            f"python benchmarks/mukca.py ../shared/datasets{flags} --markdown PAGE",
+        )
     if args.json is not None:
-        record: list[dict[str, Any]] = [
-            {
-                "robot": r.robot,
-                "train": r.train,
-                "test": r.test,
-                "urdf": r.urdf.to_dict(),
-                "after": r.after.to_dict(),
-                "seconds": r.seconds,
-            }  # fmt: skip
-            for r in rows
-        ]
-        record += [
-            {"robot": p.robot, "left_out": p.test, "held": p.held.to_dict(), "floor": p.floor.to_dict()}
-            for p in pools
-        ]
-        args.json.write_text(json.dumps(record, indent=1))
+        write_json(args.json, rows, pools)
 
 
 if __name__ == "__main__":

@@ -39,7 +39,7 @@ from pincal.cli import main
 from pincal.diagnose import diagnose
 from pincal.effects import Extension
 from pincal.errors import DataError, PincalError
-from pincal.fixed_points import parse_point_distances, point_errors
+from pincal.fixed_points import DISTANCE_WEIGHT, parse_point_distances, point_errors
 from pincal.kinematics import Chain, forward
 from pincal.point_files import read_socket_folder
 from pincal.report import report_dict, report_warnings
@@ -223,10 +223,11 @@ def test_points_jacobian_matches_finite_differences(key: str, kind: str, known: 
     # Round-off of the differences: 10 ε |r| / h with residuals computed from positions of ~1 m.
     bad = np.abs(jac - jac_fd).max(axis=0) > FD_RTOL * size + 10 * np.finfo(float).eps / steps
     assert not bad.any(), [problem.names[c] for c in np.flatnonzero(bad)]
-    if known:  # the distance row sees the points only, weighted by √N
+    if known:  # the distance row sees the points only, weighted by DISTANCE_WEIGHT √N
         first = problem.n_model
         assert np.all(jac[-1, :first] == 0) and np.all(jac[-1, first + 6 :] == 0)
-        assert np.isclose(np.linalg.norm(jac[-1]), np.sqrt(2 * len(problem.data)), rtol=1e-12)
+        expected = DISTANCE_WEIGHT * np.sqrt(2 * len(problem.data))
+        assert np.isclose(np.linalg.norm(jac[-1]), expected, rtol=1e-12)
 
 
 @pytest.mark.parametrize("known", [False, True], ids=["no_distance", "distance"])

@@ -39,10 +39,13 @@ GetRobot = Callable[[str], pincal.Robot]
 
 
 def _round(robot: pincal.Robot, model: str, seed: int) -> pincal.Calibration:
-    """Calibrate ``robot`` with ``model`` on position data from a new seeded truth around it."""
+    """Calibrate ``robot`` with ``model`` on position data from a new seeded truth around it; the
+    fit is exported even where the guard finds it not reliably better than the nominal model
+    (``force_fit``: the offsets model's third UR5 round gains 2 % only): the export is tested."""
     truth = pincal.random_truth(robot, seed)
     q = robot.random_configurations(N_POSES, np.random.default_rng(seed + 100), 0.05)
-    return pincal.calibrate(robot, truth.measure(q, seed=seed + 200), model, params="all")
+    data, pull = truth.measure(q, seed=seed + 200), pincal.Pull(force_fit=True)
+    return pincal.calibrate(robot, data, model, params="all", pull=pull)
 
 
 def _errors(exported: pincal.Robot, cal: pincal.Calibration, seed: int) -> tuple[float, float, float]:

@@ -38,6 +38,7 @@ if TYPE_CHECKING:  # the same names for type checkers; at run time each loads on
     from .diagnose import Candidate, Diagnosis
     from .effects import EFFECTS, Extension
     from .evaluation import ErrorStats, distance_errors, evaluate, pose_errors
+    from .guard import Pull
     from .identifiability import Identifiability
     from .kinematics import Chain, forward, joint_jacobian, tip_jacobian
     from .mdh import MdhModel, MdhTable, mdh_table
@@ -120,6 +121,7 @@ _LAZY: dict[str, str] = {
     "find_outliers": "outliers",
     "pose_scores": "outliers",
     "calibrate": "pipeline",
+    "Pull": "guard",
     "judge_calibration": "plausibility",
     "judge_tool": "tool_plausibility",
     "Check": "verdict",
@@ -199,6 +201,7 @@ __all__ = [
     "PlacementsModel",
     "Plan",
     "PoeModel",
+    "Pull",
     "Problem",
     "Robot",
     "RobotError",

@@ -23,7 +23,7 @@ fit: 0.10 mm, but its URDF alone 8-21 % worse).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -185,5 +185,5 @@ def balanced_fit(setup: Setup, theta: np.ndarray, free: np.ndarray, weight: floa
     stacked = Stacked(setup.problem, weight)
     geometry = free.copy()
     geometry[stacked.effect] = False
-    fitted, _ = solve(Setup(stacked, setup.scale, setup.tool), theta, geometry)  # type: ignore[arg-type]
+    fitted, _ = solve(replace(setup, problem=stacked), theta, geometry)  # type: ignore[arg-type]
     return fitted

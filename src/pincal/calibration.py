@@ -20,6 +20,8 @@ from .robots import Robot
 if TYPE_CHECKING:
     from .balance import Balance
     from .choice import ModelChoice
+    from .guard import Guard
+    from .prior import PriorChoice
 
 
 @dataclass(frozen=True, eq=False)
@@ -50,6 +52,8 @@ class Calibration:
             ``extension="auto"``), else None.
         balance: with an extension, how geometry and effect were weighted so that the URDF
             alone stays the best URDF (:mod:`pincal.balance`), else None.
+        prior: the pull toward the URDF: its weight and how it was chosen (:mod:`pincal.prior`).
+        guard: the fit judged against the nominal model on the fitted poses (:mod:`pincal.guard`).
     """
 
     model: Model
@@ -75,6 +79,8 @@ class Calibration:
     excluded: tuple[tuple[int, float], ...] = ()
     choice: ModelChoice | None = None
     balance: Balance | None = None
+    prior: PriorChoice | None = None
+    guard: Guard | None = None
 
     @property
     def robot(self) -> Robot:

@@ -281,11 +281,11 @@ def read_joints(path: str | Path, robot: Robot, degrees: bool = False, units: st
 
 
 def read_program(
-    path: str | Path, robot: Robot, degrees: bool = False, units: str = "m"
+    path: str | Path, robot: Robot, degrees: bool = False, units: str = "m", quaternion_order: str = "wxyz"
 ) -> np.ndarray | Targets:
     """Read a program CSV: joint commands (N, n) [rad or m] from a column per chain joint, or else
-    :class:`Targets` from ``x,y,z`` (in ``units``) and optional ``qw,qx,qy,qz``. With joint columns,
-    ``x,y,z`` columns are ignored (they are measurements, not targets).
+    :class:`Targets` from ``x,y,z`` (in ``units``) and optional ``qw,qx,qy,qz`` (``quaternion_order``).
+    With joint columns, ``x,y,z`` columns are ignored (they are measurements, not targets).
 
     Raises:
         DataError: missing file or columns, non-numeric cells, unknown unit.
@@ -299,7 +299,7 @@ def read_program(
         raise DataError(f"{path}: a program needs a column per joint ({', '.join(names)}) or targets x,y,z")
     from .checks import quaternion_columns  # it imports this module
 
-    quat = quaternion_columns(path, sorted(header))  # all four or none
+    quat = quaternion_columns(path, csv_columns(path), quaternion_order)  # all four or none, in file order
     values = read_table(path, ["x", "y", "z", *quat], "x,y,z (and optionally qw,qx,qy,qz)")
     quats = unit_quaternions(path, values[:, 3:]) if quat else None
     rot = None if quats is None else np.array([pin.Quaternion(*v).matrix() for v in quats])

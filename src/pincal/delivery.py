@@ -81,7 +81,7 @@ def settled(cal: Calibration, data: Dataset, test: Dataset | None) -> Calibratio
     settled_cal = assess(
         setup, cal.theta, register(setup, with_extension=False), cal.identifiability, result, test
     )
-    return replace(settled_cal, excluded=cal.excluded, choice=cal.choice, balance=cal.balance)
+    return carried(settled_cal, cal)
 
 
 def _effect_refitted(
@@ -104,7 +104,19 @@ def _effect_refitted(
     free[k : k + problem.measurement.n_points] = True  # fixed points: where the sockets are
     theta, result = solve(setup, theta, free)
     cal = assess(setup, theta, register(setup, with_extension=False), ident, result, test)
-    return replace(cal, excluded=geometry.excluded, choice=geometry.choice)
+    return carried(cal, geometry)
+
+
+def carried(cal: Calibration, source: Calibration) -> Calibration:
+    """``cal`` with what ``source`` recorded of how it was made (outliers, choice, balance, pull, guard)."""
+    return replace(
+        cal,
+        excluded=source.excluded,
+        choice=source.choice,
+        balance=source.balance,
+        prior=source.prior,
+        guard=source.guard,
+    )
 
 
 @dataclass(frozen=True)

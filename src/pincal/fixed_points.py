@@ -6,8 +6,9 @@ only knowledge is "same point" within a point's rows and, optionally, known dist
 points. The unknowns are the points' positions in the base frame (3 each, [m]) and the tip point
 on the flange (3, [m]); the residual of a row is its tip position minus its point's position, so
 the cost grows with the number of rows, not of pairs. A known distance ``D`` between points
-``a`` and ``b`` adds one residual ``w · (|c_a - c_b| - D)``, ``w = √N`` (it is worth as much as
-the rows together: a printed fixture is more exact than a hand-held ball).
+``a`` and ``b`` adds one residual ``w · (|c_a - c_b| - D)``, ``w = 10 √N`` (:data:`DISTANCE_WEIGHT`:
+it is worth ten times the rows together: a printed fixture is more exact than a hand-held ball,
+and the pull toward the URDF must not trade micrometres of it).
 
 Some motions of the whole set-up change no residual (*gauges*): moving the robot's base and
 every point together (3 translations, 3 rotations), and, without a known distance, scaling every
@@ -40,6 +41,10 @@ if TYPE_CHECKING:
 PointDistance = tuple[str, str, float]
 #: A gauge is exact when the parameters make its motion to this relative accuracy.
 GAUGE_TOLERANCE = 1e-6
+#: A known distance weighs as this many times the rows together, in root-sum-square: a printed
+#: fixture is more exact than a hand-held ball, and the pull toward the URDF (:mod:`pincal.prior`)
+#: must not trade micrometres of it for its own cost.
+DISTANCE_WEIGHT = 10.0
 
 
 def parse_point_distances(text: str | None, units: str = "m") -> tuple[PointDistance, ...]:
@@ -242,7 +247,7 @@ def points_rows(
     if index is None:
         raise DataError("--measure points needs a point column naming one of the fitted points in every row")
     centres = problem.point_positions(theta)
-    weight = np.sqrt(len(problem.data))
+    weight = DISTANCE_WEIGHT * np.sqrt(len(problem.data))
     where = {name: k for k, name in enumerate(m.points)}
     known = [(where[a], where[b], d) for a, b, d in m.point_distances]
     diffs = np.array([centres[a] - centres[b] for a, b, _ in known]).reshape(-1, 3)

@@ -22,6 +22,7 @@ from .delivery import effect_on_top, settled
 from .effects import Extension, Payload
 from .errors import DataError
 from .fixed_points import PointDistance
+from .guard import DEFAULT_PULL, Protected, Pull, protect
 from .identifiability import RCOND, Identifiability
 from .measurements import ROTATION_WEIGHT
 from .models import Model
@@ -36,8 +37,6 @@ if TYPE_CHECKING:
 #: How geometry and an effect share the fit (see :func:`calibrate`'s ``deliver``).
 DELIVERIES = ("balanced", "joint", "none")
 
-Fit = tuple[np.ndarray, np.ndarray, Identifiability, Any]
-
 
 def fit(
     setup: Setup,
@@ -49,15 +48,17 @@ def fit(
     rcond: float = RCOND,
     nominal: np.ndarray | None = None,
     every: Identifiability | None = None,
-) -> Fit:
+    pull: Pull = DEFAULT_PULL,
+) -> Protected:
     """Register (unless the registration-only θ ``nominal`` is given), find the identifiable set
     (``every``, when given, is the one of every parameter at ``nominal``: used for ``params``
-    None), solve: θ, the registration-only θ, the set, the solver's result."""
+    None), choose the pull toward the URDF and solve, and judge the fit against the nominal model
+    (:func:`pincal.guard.protect`)."""
     nominal = register(setup) if nominal is None else nominal
     known = every if params is None else None
     ident = identifiable_set(setup, nominal, params, partial, rcond) if known is None else known
-    theta, result = solve(setup, nominal, ident.identifiable, loss, f_scale)
-    return theta, nominal, ident, result
+    base, _ = solve(setup, nominal, ident.identifiable, loss, f_scale)  # at the default pull
+    return protect(setup, nominal, ident, base, pull, loss, f_scale)
 
 
 def parse_params(params: Sequence[str] | str | None) -> tuple[str, ...] | str | None:
@@ -129,6 +130,7 @@ def calibrate(
     nested: bool | None = False,
     progress: Callable[[int, int, str], None] | None = None,
     deliver: str = "balanced",
+    pull: Pull = DEFAULT_PULL,
 ) -> Calibration:
     """Identify a kinematic model from measurements.
 
@@ -157,6 +159,7 @@ def calibrate(
         deliver: with an extension, ``balanced`` (the URDF alone stays the best URDF, the effect
             completes it: :mod:`pincal.balance`), ``joint`` (fitted together) or ``none`` (joint,
             gravity on the nominal URDF: the diagnosis' inner fits).
+        pull: the pull toward the URDF, and when the fit is exported (:class:`~pincal.guard.Pull`).
 
     Raises:
         DataError, IdentifiabilityError: unusable input (names, data), too little information.
@@ -167,12 +170,13 @@ def calibrate(
     options.update(rotation_weight=rotation_weight, point_distances=tuple(point_distances))
     fit_options: dict[str, Any] = dict(partial=partial, loss=loss, f_scale=f_scale, rcond=rcond)
     call = dict(options, **fit_options, params=params, extension=extension, payload=payload, deliver=deliver)
+    call["pull"] = fit_options["pull"] = pull
     choosing = dict(folds=folds, seed=seed, payload=payload, progress=progress)
     setup, choice, wanted, chosen = _chosen(
         robot, data, model, measure, wanted, ext, options, fit_options, choosing
     )
-    theta, nominal, ident, result = fit(setup, wanted, **chosen, **fit_options)
-    bad, scores = screen_outliers(setup, theta, ident.identifiable, outliers or 0.0, f_scale)
+    found = fit(setup, wanted, **chosen, **fit_options)
+    bad, scores = screen_outliers(*found.screening, found.free, outliers or 0.0, f_scale)
     if bad.size and choice.diagnosis is not None and choice.diagnosis.candidates:
         screen = {**fit_options, "threshold": outliers or 0.0}
         bad = _outliers_for_both(setup, choice, bad, wanted, options, screen)
@@ -182,7 +186,7 @@ def calibrate(
     if nested is not False:
         judge = _judge(robot, data, model, measure, folds, seed, {**call, "outliers": outliers})
         choice = choice.with_nested(judge, nested is True, len(data))
-    fitted = replace(assess(setup, theta, nominal, ident, result, test), choice=choice)
+    fitted = replace(found.assessed(test), choice=choice)
     return _delivered(fitted, setup, deliver, wanted, test, options, fit_options)
 
 
@@ -247,14 +251,17 @@ def _balanced(
     (:mod:`pincal.balance`), on the parameters chosen for the geometry alone (``kept``): at the
     weight's limit the URDF is the geometric fit, and the effect is fitted on top of it."""
     data, folds, seed = setup.data, choice.folds, choice.seed
-    theta, nominal, ident, result = fit(setup, kept, **fit_options)
+    joint = fit(setup, kept, **fit_options)
+    if not joint.guard.kept_fit:  # the nominal geometry is exported: no effect to balance
+        return replace(joint.assessed(test), choice=choice)
+    theta, ident = joint.theta, joint.identifiability
     balance = choose_weight(setup, theta, ident.identifiable, folds, seed)
     if np.isfinite(balance.weight):
-        theta = balanced_fit(setup, theta, ident.identifiable, balance.weight)
-        cal = settled(replace(assess(setup, theta, nominal, ident, result, test), choice=choice), data, test)
-        return replace(cal, balance=balance)
-    g_theta, g_nominal, g_ident, g_result = fit(geometry, kept, **fit_options)
-    alone = replace(assess(geometry, g_theta, g_nominal, g_ident, g_result, test), choice=choice)
+        theta = balanced_fit(joint.setup, theta, ident.identifiable, balance.weight)
+        cal = assess(joint.setup, theta, joint.nominal, ident, joint.result, test)
+        cal = replace(cal, choice=choice, prior=joint.prior, guard=joint.guard)
+        return replace(settled(cal, data, test), balance=balance)
+    alone = replace(fit(geometry, kept, **fit_options).assessed(test), choice=choice)
     assert setup.problem.extension is not None
     return replace(effect_on_top(alone, setup.problem.extension, data, test), balance=balance)
 
@@ -280,8 +287,8 @@ def _outliers_for_both(
     other = set_up(robot, problem.data, problem.model, kind, extension=best, **options)
     params = choice.params if wanted == "auto" else wanted
     fit_options = {k: v for k, v in screen.items() if k != "threshold"}
-    theta, _, ident, _ = fit(other, params, **{**fit_options, "partial": True})
-    again, _ = screen_outliers(other, theta, ident.identifiable, screen["threshold"], screen["f_scale"])
+    found = fit(other, params, **{**fit_options, "partial": True})
+    again, _ = screen_outliers(*found.screening, found.free, screen["threshold"], screen["f_scale"])
     return np.intersect1d(bad, again)
 
 

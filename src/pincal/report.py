@@ -133,6 +133,8 @@ def report_dict(
         "placements": [p.to_dict() for p in found[0]],
         "warnings": report_warnings(cal, data, test, found),
         "choice": None if cal.choice is None else cal.choice.to_dict(),
+        "prior": None if cal.prior is None else cal.prior.to_dict(),
+        "guard": None if cal.guard is None else cal.guard.to_dict(),
         "extension": extension_dict(cal, data),
         **extra,
     }

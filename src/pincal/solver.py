@@ -50,6 +50,13 @@ from .robots import Robot
 SETUP_KEYS = ("instrument_T_base", "tool", "rotation_weight", "pairs", "point_distances")
 
 
+#: Weight of the rows that hold each geometric correction near the URDF, per natural unit (metres,
+#: or the rotation that moves the workspace by 1 m): 0.1 m of correction weighs as one residual of
+#: 0.15 mm. Where data can hardly tell corrections apart (the last joint's placement against a ball
+#: on its axis), it keeps the fit from wandering decimetres and radians away for micrometres.
+PRIOR_WEIGHT = 1.5e-3
+
+
 @dataclass(frozen=True, eq=False)
 class Setup:
     """A calibration problem before anything is fitted.
@@ -60,11 +67,13 @@ class Setup:
         scale: natural size of each unknown (1 for metres, 1/length for radians, an effect's
             size that moves the tip by 1 mm at the workspace's length).
         tool: the tool as given (the tip frame's origin when unknown): the "URDF as is" tool.
+        prior_weight: the pull toward the URDF (:data:`PRIOR_WEIGHT`, or :mod:`pincal.prior`'s).
     """
 
     problem: Problem
     scale: np.ndarray
     tool: pin.SE3
+    prior_weight: float = PRIOR_WEIGHT
     _last: dict[str, Any] = field(default_factory=dict, init=False, repr=False)
 
     def linearised(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -165,17 +174,10 @@ def natural_scale(problem: Problem) -> np.ndarray:
     return scale
 
 
-#: Weight of the rows that hold each geometric correction near the URDF, per natural unit (metres,
-#: or the rotation that moves the workspace by 1 m): 0.1 m of correction weighs as one residual of
-#: 0.15 mm. Where data can hardly tell corrections apart (the last joint's placement against a ball
-#: on its axis), it keeps the fit from wandering decimetres and radians away for micrometres.
-PRIOR_WEIGHT = 1.5e-3
-
-
 def solve(
     setup: Setup, theta: np.ndarray, free: np.ndarray, loss: str = "linear", f_scale: float = 1e-4
 ) -> tuple[np.ndarray, OptimizeResult]:
-    """Least squares over the unknowns ``free`` (mask) from ``theta``, held by :data:`PRIOR_WEIGHT` rows.
+    """Least squares over the unknowns ``free`` (mask) from ``theta``, held by ``setup.prior_weight`` rows.
 
     Args:
         setup: the problem.
@@ -187,7 +189,7 @@ def solve(
     problem = setup.problem
     nominal = problem.initial_theta()
     geometric = np.flatnonzero(free[: problem.model.n_params])  # the first free unknowns
-    prior = PRIOR_WEIGHT / setup.scale[geometric]  # [1 or m/rad]
+    prior = setup.prior_weight / setup.scale[geometric]  # [1 or m/rad]
 
     def full(sub: np.ndarray) -> np.ndarray:
         out = theta.copy()

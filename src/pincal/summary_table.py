@@ -174,6 +174,7 @@ def summary(
             "all the others)"
         )
     lines += choice_lines(cal, data)
+    lines += [part.text() for part in (cal.prior, cal.guard) if part is not None]  # issue 31
     if outcome is not None:
         lines.append(f"residual: {outcome.residual.sentence()}; {outcome.residual.how}")
         caveat = outcome.caveat()

@@ -32,6 +32,7 @@ from .common import (
     ur_yaml_output,
     urdf_path,
 )
+from .pull_options import pull
 
 #: ``--nested`` -> the ``nested`` argument of :func:`pincal.calibrate`.
 NESTED = {"auto": None, "yes": True, "no": False}
@@ -95,6 +96,7 @@ def _fit(
         nested=NESTED[args.nested],
         progress=progress,
         deliver="balanced" if args.geometry == "first" else "joint",
+        pull=pull(args),
         **fit_options(args),
     )
     if not needs_subset(data, args.params, args.extend):

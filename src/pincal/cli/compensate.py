@@ -36,7 +36,7 @@ def run(args: argparse.Namespace) -> int:
         program = read_static_joints(args.program, nominal.joint_names, recording_options(args))
         print(f"{args.program}: {len(program)} static poses")
     else:
-        program = read_program(args.program, nominal, args.degrees, args.units)
+        program = read_program(args.program, nominal, args.degrees, args.units, args.quaternion_order)
     header = [] if is_recording(args.program) else csv_columns(args.program)
     targets = [c for c in ("x", "y", "z", "qw", "qx", "qy", "qz") if c in header]
     if not isinstance(program, Targets) and targets:

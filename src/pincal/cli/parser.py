@@ -19,12 +19,15 @@ from ..options import (
     THRESHOLD,
     UNITS,
 )
+from .data_options import add_lock, add_program_quaternion_order
 from .deliver_options import add_baseline_params, add_geometry, add_noise
 from .help_groups import group_options, report_option, version
-from .numeric import count, folds, fraction, height, reach, rotation_weight, seed, sigmas, threads
+from .numeric import folds, fraction, rotation_weight, seed, sigmas, threads
+from .plan_args import add_plan
+from .pull_options import add_pull_options
 from .recording_args import add_accuracy, add_extract, add_recording_options
 from .template import add_template
-from .values import mapping, name_list, parameters, payload, vector3, vectors3
+from .values import mapping, name_list, parameters, payload, vector3
 
 
 class _Parser(argparse.ArgumentParser):
@@ -45,8 +48,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="BLAS threads (default: $PINCAL_THREADS, else 1; 0 leaves BLAS as it is)",
     )
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
-    for add in (_add_calibrate, _add_diagnose, _add_demo, _add_tcp, _add_compensate, _add_plan, _add_twists):
+    for add in (_add_calibrate, _add_diagnose, _add_demo, _add_tcp, _add_compensate):
         add(sub)
+    add_plan(sub, _add_robot_options, _add_force)
+    _add_twists(sub)
     add_template(sub, _add_robot_options, _add_force)
     add_extract(sub)
     add_accuracy(sub)
@@ -98,6 +103,7 @@ def _add_calibrate(sub: Any) -> None:
         help="judge the whole choice by nested cross-validation: 'auto' when cheap (default)",
     )
     cal.add_argument("--pairs", choices=["all", "gao"], default="all", help="pairs for --measure distance")
+    add_pull_options(cal)  # issue 31
     _add_force(cal)
 
 
@@ -134,6 +140,7 @@ def _add_tcp(sub: Any) -> None:
     tcp.add_argument("--tip", help="with --robot: the flange frame (default: the robot's tip)")
     tcp.add_argument("--degrees", action="store_true", help="with --robot: joint values in degrees")
     _add_robot_options(tcp, "--robot")
+    add_lock(tcp)  # issue 31
     _add_plausibility_options(tcp)
     _add_force(tcp)
 
@@ -159,63 +166,8 @@ def _add_compensate(sub: Any) -> None:
     comp.add_argument("--degrees", action="store_true", help="revolute joint values in degrees (in and out)")
     comp.add_argument("--units", choices=sorted(UNITS), default="m", help="unit of x,y,z targets, prismatic")
     add_recording_options(comp)
+    add_program_quaternion_order(comp)  # issue 31
     _add_force(comp)
-
-
-def _add_plan(sub: Any) -> None:
-    """``pincal plan``."""
-    plan = sub.add_parser("plan", help="choose measurement poses for the accuracy of the calibrated robot")
-    plan.add_argument("robot", help=f"a .urdf or .xacro path or a bundled robot ({', '.join(BUNDLED)})")
-    _add_robot_options(plan)
-    plan.add_argument("--tip", help="the measured frame (default: the robot's documented tip)")
-    plan.add_argument("--poses", type=count, required=True, help="number of poses to measure")
-    plan.add_argument("--model", choices=MODELS, default="placements")
-    plan.add_argument("--measure", choices=MEASURES, default="position")
-    plan.add_argument(
-        "--candidates", type=count, default=1000, help="random feasible candidates to choose from"
-    )
-    plan.add_argument("--seed", type=seed, default=0)
-    plan.add_argument(
-        "--units", choices=sorted(UNITS), default="m",
-        help="unit of the lengths given below (--tool-point, --tool-tolerance, --sockets, --point-distance, "
-        "--clearance, --instrument, --reach); prismatic joints in --task and -o are in metres",
-    )
-    plan.add_argument(
-        "--criterion", choices=("i", "d"), default="i",
-        help="i: least mean squared error of the calibrated tip over the task poses (default); "
-        "d: largest log det of the information",
-    )
-    plan.add_argument(
-        "--task", type=Path,
-        help="CSV of the poses the robot will work in, a column per joint (default: its whole workspace)"
-    )
-    plan.add_argument(
-        "--tool-point", type=vector3, help="the measured point on the tip, X,Y,Z, roughly [units]"
-    )
-    plan.add_argument(
-        "--tool-tolerance", type=reach,
-        help="how far the real point may be from --tool-point [units] (default 0.01 m; 0.1 m from the tip)",
-    )
-    plan.add_argument(
-        "--sockets", type=vectors3, help="with --measure points: where the sockets are, X,Y,Z;X,Y,Z [units]"
-    )
-    plan.add_argument(
-        "--point-distance", metavar="A,B=D[;...]", help="with --sockets: known distances between them [units]"
-    )
-    plan.add_argument(
-        "--clearance", type=height, help="height above the floor z = 0 [units] (default 0.05 m)"
-    )
-    plan.add_argument(
-        "--instrument", type=vector3, help="with --reach: instrument position X,Y,Z in the base frame [units]"
-    )
-    plan.add_argument("--reach", type=reach, help="with --instrument: its range [units]")
-    plan.add_argument("--extend", metavar="EFFECT:JOINT", help="plan for a non-geometric effect too")
-    plan.add_argument(
-        "--degrees", action="store_true",
-        help="revolute joint values in degrees: those read from --task and those written to -o",
-    )
-    plan.add_argument("-o", "--output", type=Path, required=True, help="the poses (CSV, a column per joint)")
-    _add_force(plan)
 
 
 def _add_twists(sub: Any) -> None:

@@ -9,10 +9,10 @@ import numpy as np
 from ..data import UNITS, atomic_write
 from ..errors import DataError, ImplausibleError
 from ..json_text import json_text
-from ..robots import load_robot
 from ..tool import calibrate_tool, read_flange_poses
 from ..tool_plausibility import judge_tool
-from .common import check_outputs, robot_options, urdf_path, warn
+from .common import check_outputs, urdf_path, warn
+from .data_options import locked_robot
 
 
 def run(args: argparse.Namespace) -> int:
@@ -20,7 +20,7 @@ def run(args: argparse.Namespace) -> int:
     check_outputs(args, [args.json], {"poses file": args.poses, "input URDF": urdf_path(args.robot)})
     _robot_only(args)
     _inapplicable(args)
-    robot = load_robot(args.robot, tip=args.tip, **robot_options(args)) if args.robot else None
+    robot = locked_robot(args) if args.robot else None
     rotations, positions = read_flange_poses(
         args.poses, args.units, args.columns, robot, args.degrees, args.quaternion_order
     )
@@ -88,6 +88,7 @@ def _robot_only(args: argparse.Namespace) -> None:
         "--xacro-arg": bool(args.xacro_arg),
         "--package-path": bool(args.package_path),
         "--kinematics": args.kinematics is not None,
+        "--lock": bool(args.lock),
     }
     named = [flag for flag, on in given.items() if on]
     if named:

@@ -1,0 +1,65 @@
+"""Data options of ``pincal calibrate`` that ``tcp`` and ``compensate`` take too, where they
+apply: ``tcp --robot ... --lock`` (chain joints held at neutral when the flange poses are
+computed) and ``compensate --quaternion-order`` (the program's target quaternions). The others
+(``--measure``, ``--point-distance``, ``--model``, ``--loss``, ...) describe a calibration's
+measurements: both commands refuse them as unknown options (one ``pincal: error:`` line, exit 2).
+"""
+
+from __future__ import annotations
+
+import argparse
+from typing import TYPE_CHECKING
+
+from ..errors import DataError
+from ..options import QUATERNION_ORDERS
+from .values import name_list
+
+if TYPE_CHECKING:
+    from ..robots import Robot
+
+
+def add_lock(cmd: argparse.ArgumentParser) -> None:
+    """``--lock JOINT,...`` for ``tcp`` (with ``--robot``)."""
+    cmd.add_argument(
+        "--lock",
+        type=name_list,
+        default=(),
+        metavar="JOINT,...",
+        help="with --robot: chain joints held at neutral (as calibrate's --lock); the file needs no column "
+        "for them",
+    )
+
+
+def add_program_quaternion_order(cmd: argparse.ArgumentParser) -> None:
+    """``--quaternion-order`` for ``compensate`` (its targets' ``qw,qx,qy,qz`` columns)."""
+    cmd.add_argument(
+        "--quaternion-order",
+        choices=QUATERNION_ORDERS,
+        default="wxyz",
+        help="wxyz (default): the target columns qw,qx,qy,qz hold what their names say; xyzw: the four "
+        "quaternion columns, left to right, hold x, y, z, w (as calibrate's option)",
+    )
+
+
+def locked_robot(args: argparse.Namespace) -> Robot:
+    """The ``--robot`` chain to ``--tip``, without the ``--lock`` joints (held at neutral).
+
+    Raises:
+        DataError: a locked joint not in the chain, or every joint locked.
+    """
+    from ..robots import load_robot  # here: --help loads no NumPy
+    from .common import robot_options
+
+    chain = load_robot(args.robot, tip=args.tip, **robot_options(args))
+    unknown = [j for j in args.lock if j not in chain.joint_names]
+    if unknown:
+        raise DataError(
+            f"--lock {','.join(unknown)}: not joints between the base and {chain.tip} "
+            f"({', '.join(chain.joint_names)})"
+        )
+    if not args.lock:
+        return chain
+    if len(args.lock) == chain.n_joints:
+        raise DataError("--lock names every joint of the chain: nothing would move")
+    joints = [j for j in chain.joint_names if j not in args.lock]
+    return load_robot(args.robot, tip=args.tip, joints=joints, **robot_options(args))
