@@ -32,12 +32,20 @@ class Outcome:
             return None
         head = f"{self.cause} explains part of the structure; {self.residual.unexplained_mm:.3g} mm remains"
         joint = self.joint_cv_rms_mm
+        outside = (
+            "an effect outside pincal's list (link bending, drift over time, another period, a nonlinear "
+            "stiffness) or a second cause"
+        )
         if joint is not None and joint < 0.8 * self.residual.cv_rms_mm:
-            return (
-                f"{head}: most of it is what the URDF alone cannot share with the sidecar: fitted together "
+            said = (
+                f"{head}: part of it is what the URDF alone cannot share with the sidecar: fitted together "
                 f"with the geometry (--geometry joint) the cause leaves {joint:.3g} mm (cross-validated), "
                 "but that URDF is worse alone"
             )
+            floor = self.residual.floor_mm
+            if joint < 1.5 * floor:
+                return said
+            return f"{said}; above the noise floor ({floor:.3g} mm), {outside}"
         return (
             f"{head} unexplained: the named cause may stand in for an effect outside pincal's list (link "
             "bending, drift over time, another period, a nonlinear stiffness), or a second cause remains"

@@ -144,18 +144,15 @@ def calibrate(
             pairs for distance data (``all``, ``gao`` (eq. 21) or an (m, 2) array);
             point_distances: known distances between fixed points, ((A, B, D [m]), ...).
         loss, f_scale, rcond: a loss and where it down-weights [m]; the rank's threshold.
-        extension: an effect identified with the geometry (:class:`~pincal.effects.Extension`
-            or ``EFFECT:JOINT``); ``"auto"``: the cause the diagnosis names on the chosen
-            geometry, if any (:mod:`pincal.choice`); None or ``"none"``: no extension.
-        params: the model parameters to fit: None or ``"all"`` (every identifiable one),
-            ``"auto"`` (chosen by cross-validation on ``data``, :mod:`pincal.choice`), or names;
-            the others stay nominal. Extension, registration and tool are always fitted.
+        extension: an effect (:class:`~pincal.effects.Extension` or ``EFFECT:JOINT``);
+            ``"auto"``: the cause the diagnosis names (:mod:`pincal.choice`); None: none.
+        params: None or ``"all"`` (every identifiable one), ``"auto"`` (chosen by cross-validation
+            on ``data``) or names; the others stay nominal (registration, tool always fitted).
         outliers, partial: leave out poses this many robust σ above the others (:mod:`pincal.outliers`);
             fit what the data identifies when varied poses would identify more.
         payload, progress: a tip load, for gravity torques; ``progress(done, total, label)``.
         folds, seed: K and seed of the cross-validation of ``extension="auto"`` and ``nested``.
-        nested: with ``"auto"``, judge the whole procedure by K-fold cross-validation (choice
-            and fit re-run without each fold): True, False, or None "when cheap" (``nested_policy``).
+        nested: judge the whole call by K-fold cross-validation: True, False or None (when cheap).
         deliver: with an extension, ``balanced`` (the URDF alone stays the best URDF, the effect
             completes it: :mod:`pincal.balance`), ``joint`` (fitted together) or ``none`` (joint,
             gravity on the nominal URDF: the diagnosis' inner fits).

@@ -260,8 +260,8 @@ def _model_checks(cal: Calibration, problem: Problem, size: float, loss: str) ->
             worse,
             GAIN,
             "ratio",
-            f"calibration makes the fit worse: {err_text(cal.train_before)} before, "
-            f"{err_text(cal.train_after)} after",
+            f"the fit after calibration against before (above {GAIN:g}: calibration makes it worse): "
+            f"{err_text(cal.train_before)} before, {err_text(cal.train_after)} after",
         )
     _, _, tool = cal.split()
     reach = float(np.linalg.norm(tool.translation))

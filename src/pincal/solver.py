@@ -1,16 +1,14 @@
 """Identification in named steps: set up, register, choose, solve, screen outliers, assess.
 
-:func:`calibrate` is the whole pipeline, and every other path (the command line,
-:mod:`pincal.selection`, :mod:`pincal.choice`, :mod:`pincal.diagnose`, the benchmarks) calls it
-or the same steps:
+:func:`pincal.calibrate` runs them; every other path calls it or the same steps:
 
 1. :func:`set_up`: the residual function (:class:`~pincal.measurements.Problem`) with a
    closed-form first guess of the registration and tool, and each unknown's natural size;
 2. :func:`register`: the nominal model with only the registration and tool fitted ("before");
 3. :func:`identifiable_set`: the parameters the data identifies (and those held, with why);
 4. :func:`solve`: Levenberg-Marquardt (or trust-region reflective with a robust loss) on that
-   set, scaled so that 1 mm and the rotation that moves the workspace by 1 mm weigh the same,
-   with a weak prior holding each correction near the URDF (:data:`PRIOR_WEIGHT`);
+   set, 1 mm and the rotation that moves the workspace by 1 mm weighing the same, each
+   correction held near the URDF (``Setup.prior_weight``, :mod:`pincal.prior`);
 5. :func:`screen_outliers`: poses far outside the others' residuals (see :mod:`pincal.outliers`);
 6. :func:`assess`: standard deviations ``σ² (JᵀJ)⁻¹`` with ``σ²`` from the fit residual, and the
    errors before and after on the fitted and held-out poses.
