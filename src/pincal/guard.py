@@ -26,6 +26,7 @@ from scipy.optimize import OptimizeResult
 from .calibration import Calibration
 from .data import Dataset
 from .identifiability import Identifiability
+from .measurements import Problem
 from .prior import PriorChoice, choose_weight, pulled
 from .solver import Setup, assess, solve
 
@@ -121,6 +122,7 @@ def judge(
         free: mask of the fitted unknowns.
         forced: export the fit whatever the verdict (``--force-fit``).
     """
+    setup = judged_on(setup)
     n_model = setup.problem.n_model
     registration = free & (np.arange(len(free)) >= n_model)
     fit = loo_squared_errors(setup, theta, free)
@@ -130,6 +132,22 @@ def judge(
     z = float(np.mean(gain) / stderr) if stderr > 0 else 0.0  # no spread: nothing but the registration moved
     reliable = z > Z_MIN
     return Guard(_rms_mm(fit), _rms_mm(base), z, reliable or forced, forced)
+
+
+#: Above this many poses (position or pose data), the guard judges a random subset of them
+#: (seed 0): its leave-one-pose-out loop would take minutes on 10⁶ poses for a verdict that many
+#: poses settle long before.
+JUDGED_POSES = 5_000
+
+
+def judged_on(setup: Setup) -> Setup:
+    """``setup``, or the same on :data:`JUDGED_POSES` random poses of a large position or pose set."""
+    problem = setup.problem
+    if len(problem.data) <= JUDGED_POSES or problem.measurement.kind not in ("position", "pose"):
+        return setup
+    keep = np.sort(np.random.default_rng(0).choice(len(problem.data), JUDGED_POSES, replace=False))
+    sub = Problem(problem.model, problem.measurement, problem.data.subset(keep), problem.extension)
+    return replace(setup, problem=sub)
 
 
 def _plain(setup: Setup, nominal: np.ndarray) -> np.ndarray:

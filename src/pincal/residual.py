@@ -24,7 +24,7 @@ error), as in the report's ``ERR``; the noise floor is the RMS of those norms un
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -233,6 +233,18 @@ def dependence(data: Dataset, errors: np.ndarray, seed: int = 0) -> tuple[float,
     return float(p_value), name, float(np.sqrt(observed / (3 * (1 + 1 / k))))
 
 
+#: Above this many poses (position or pose data) the verdict is decided on a random subset.
+VERDICT_POSES = 1_500
+
+
+def _sampled(cal: Calibration, data: Dataset, seed: int) -> tuple[Dataset, str]:
+    """``data``, or :data:`VERDICT_POSES` random poses of it when large, and what was done."""
+    if len(data) <= VERDICT_POSES or cal.measurement.kind not in ("position", "pose"):
+        return data, ""
+    keep = np.sort(np.random.default_rng(seed).choice(len(data), VERDICT_POSES, replace=False))
+    return data.subset(keep), f"; on {VERDICT_POSES} random poses of the {len(data)}"
+
+
 def residual_verdict(
     cal: Calibration,
     data: Dataset,
@@ -248,6 +260,15 @@ def residual_verdict(
         noise_mm: the instrument's noise, RMS per axis [mm], if known.
         folds, seed: the cross-validation's K and seed.
     """
+    data, note = _sampled(cal, data, seed)
+    verdict = _decided(cal, data, noise_mm, folds, seed)
+    return replace(verdict, how=verdict.how + note)
+
+
+def _decided(
+    cal: Calibration, data: Dataset, noise_mm: float | None, folds: int, seed: int
+) -> ResidualVerdict:
+    """:func:`residual_verdict` on the poses ``data``."""
     held = HeldOut(cal, data, folds, seed)
     rows = held.errors(held.residuals[:, None], held.alone_residuals[:, None])
     observed = held.per_pose(rows)[:, :, 0]
