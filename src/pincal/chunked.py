@@ -132,6 +132,22 @@ def gram(problem: Problem, theta: np.ndarray, free: np.ndarray) -> np.ndarray:
     return out
 
 
+def normal_terms(
+    problem: Problem, theta: np.ndarray, free: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, float, int]:
+    """``JᵀJ`` (P, P), ``Jᵀr`` (P,), ``rᵀr`` and the number of rows, over the free columns, block
+    by block for a large problem (the Jacobian of every pose is never held)."""
+    cols = np.arange(problem.n_params)[free]
+    parts = blocks(problem) if is_large(problem) else [problem]
+    gram, grad, rr, rows = np.zeros((len(cols), len(cols))), np.zeros(len(cols)), 0.0, 0
+    for part in parts:
+        res, jac = part._evaluate(theta, cols)
+        if part is not problem:
+            _forget(part)
+        gram, grad, rr, rows = gram + jac.T @ jac, grad + jac.T @ res, rr + float(res @ res), rows + len(res)
+    return gram, grad, rr, rows
+
+
 def lm_triangle(
     problem: Problem,
     full: Callable[[np.ndarray], np.ndarray],

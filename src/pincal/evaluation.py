@@ -78,6 +78,10 @@ class ErrorStats:
         return {k: v for k, v in asdict(self).items() if v is not None or (fixed and k.startswith("point_"))}
 
 
+#: Poses evaluated at once (a large set is evaluated by blocks).
+BLOCK_POSES = 20_000
+
+
 def pose_errors(
     model: Model,
     measurement: Measurement,
@@ -85,7 +89,21 @@ def pose_errors(
     data: Dataset,
     extension: Extension | None = None,
 ) -> tuple[np.ndarray, np.ndarray | None]:
-    """Per-pose position error norms [m] and orientation error angles [rad] (pose data)."""
+    """Per-pose position error norms [m] and orientation error angles [rad] (pose data); a large
+    position or pose set by blocks of :data:`BLOCK_POSES` (its frames are never all held)."""
+    if len(data) > BLOCK_POSES and measurement.kind in ("position", "pose"):
+        parts = [
+            pose_errors(
+                model,
+                measurement,
+                theta,
+                data.subset(np.arange(a, min(a + BLOCK_POSES, len(data)))),
+                extension,
+            )
+            for a in range(0, len(data), BLOCK_POSES)
+        ]
+        angles = [b for _, b in parts if b is not None]
+        return np.concatenate([a for a, _ in parts]), np.concatenate(angles) if angles else None
     problem = Problem(model, measurement, data, extension)
     if measurement.kind == "points":  # from the fitted points
         return np.linalg.norm(problem.residuals(theta)[: 3 * len(data)].reshape(-1, 3), axis=1), None

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import OptimizeResult
 
+from .chunked import normal_terms
 from .errors import DataError
 from .solver import Setup, solve
 
@@ -140,21 +141,22 @@ def evidence_curve(
     each weight's fit is the Gauss-Newton step from ``theta`` (two solves in all, not one per
     weight; the corrections are small enough for the residuals to be nearly linear in them)."""
     problem = setup.problem
-    jac = problem.jacobian(theta, free) * setup.scale[free]
-    res = problem.residuals(theta)
+    unscaled, unscaled_grad, rr, n_rows = normal_terms(problem, theta, free)  # by blocks on large data
+    scale = setup.scale[free]
+    gram, grad = unscaled * np.outer(scale, scale), unscaled_grad * scale
     pen = pulled(setup, free).astype(float)
     geometric = np.flatnonzero(free)[pen > 0]
     delta = np.zeros(len(pen))
     delta[pen > 0] = (theta[geometric] - problem.initial_theta()[geometric]) / setup.scale[geometric]
-    gram, grad = jac.T @ jac, jac.T @ res
     n_pulled = int(pen.sum())
     out = []
     for weight in weights:
         normal = gram + weight**2 * np.diag(pen)
         step = -np.linalg.lstsq(normal, grad + weight**2 * pen * delta, rcond=None)[0]
-        moved, held = res + jac @ step, pen * (delta + step)
-        total = float(moved @ moved + weight**2 * held @ held)
-        out.append(_score(len(res), n_pulled, len(pen), total, weight, normal))
+        held = pen * (delta + step)
+        moved = rr + 2.0 * float(step @ grad) + float(step @ gram @ step)  # |r + J step|²
+        total = moved + weight**2 * float(held @ held)
+        out.append(_score(n_rows, n_pulled, len(pen), total, weight, normal))
     return out
 
 
