@@ -183,8 +183,7 @@ def calibrate(
     if nested is not False:
         judge = _judge(robot, data, model, measure, folds, seed, {**call, "outliers": outliers})
         choice = choice.with_nested(judge, nested is True, len(data))
-    fitted = replace(found.assessed(test), choice=choice)
-    return _delivered(fitted, setup, deliver, wanted, test, options, fit_options)
+    return _delivered(found, setup, choice, deliver, wanted, test, options, fit_options)
 
 
 def _chosen(
@@ -217,38 +216,42 @@ def _chosen(
 
 
 def _delivered(
-    fitted: Calibration,
+    found: Protected,
     setup: Setup,
+    choice: ModelChoice,
     deliver: str,
     wanted: Any,
     test: Dataset | None,
     options: dict[str, Any],
     fit_options: dict[str, Any],
 ) -> Calibration:
-    """The fit ``fitted`` of ``setup`` as ``deliver`` asks (see :func:`calibrate`)."""
+    """The fit ``found`` of ``setup`` (on the parameters ``wanted``) as ``deliver`` asks (see
+    :func:`calibrate`)."""
     if setup.problem.extension is None or deliver == "none":
-        return fitted
+        return replace(found.assessed(test), choice=choice)
     if deliver == "joint":
-        return settled(fitted, setup.data, test)
-    problem, choice = setup.problem, fitted.choice
-    assert choice is not None
+        return settled(replace(found.assessed(test), choice=choice), setup.data, test)
+    problem = setup.problem
     geometry = set_up(problem.model.robot, setup.data, problem.model, problem.measurement.kind, **options)
-    return _balanced(setup, geometry, _geometric_params(geometry, choice, wanted), choice, test, fit_options)
+    kept = _geometric_params(geometry, choice, wanted)
+    joint = found if kept == wanted else fit(setup, kept, **fit_options)  # the same parameters: reused
+    return _balanced(setup, geometry, kept, joint, choice, test, fit_options)
 
 
 def _balanced(
     setup: Setup,
     geometry: Setup,
     kept: tuple[str, ...] | None,
+    joint: Protected,
     choice: ModelChoice,
     test: Dataset | None,
     fit_options: dict[str, Any],
 ) -> Calibration:
     """Geometry and effect weighted so that the URDF alone stays the best URDF
-    (:mod:`pincal.balance`), on the parameters chosen for the geometry alone (``kept``): at the
-    weight's limit the URDF is the geometric fit, and the effect is fitted on top of it."""
+    (:mod:`pincal.balance`), from their joint fit ``joint`` on the parameters chosen for the
+    geometry alone (``kept``): at the weight's limit the URDF is the geometric fit, and the
+    effect is fitted on top of it."""
     data, folds, seed = setup.data, choice.folds, choice.seed
-    joint = fit(setup, kept, **fit_options)
     if not joint.guard.kept_fit:  # the nominal geometry is exported: no effect to balance
         return replace(joint.assessed(test), choice=choice)
     theta, ident = joint.theta, joint.identifiability

@@ -149,11 +149,6 @@ class HeldOut:
         return np.concatenate([rows.reshape(n * width, draws), np.zeros((extra, draws))])
 
 
-def _unit(jac: np.ndarray) -> np.ndarray:
-    """Columns scaled to unit norm (the least squares stay well conditioned)."""
-    return jac / np.where((n := np.linalg.norm(jac, axis=0)) > 0, n, 1.0)
-
-
 def mean_square(per_pose: np.ndarray) -> np.ndarray:
     """Mean over poses of the squared error norms, per column (M,) [m²]."""
     return np.mean(np.sum(per_pose**2, axis=1), axis=0)

@@ -23,6 +23,7 @@ from ..plausibility import Verdict, judge_calibration
 from ..point_files import read_socket_folder
 from ..recording_reader import is_recording
 from ..robots import BUNDLED, Robot, bundled_urdf, load_robot
+from .data_options import check_lock
 from .past_tip import check_past_tip
 from .recording_data import recording_data, unused_recording_options
 
@@ -66,12 +67,7 @@ def robot_options(args: argparse.Namespace) -> dict[str, Any]:
 def chain(args: argparse.Namespace) -> Robot:
     """The chain; every chain joint needs a column in the data unless ``--lock`` holds it."""
     chain = load_robot(args.robot, tip=args.tip, **robot_options(args))
-    unknown = [j for j in args.lock if j not in chain.joint_names]
-    if unknown:
-        raise DataError(
-            f"--lock {','.join(unknown)}: not joints between the base and {chain.tip} "
-            f"({', '.join(chain.joint_names)})"
-        )
+    check_lock(chain, args.lock)
     if not Path(args.data).is_dir() and not is_recording(args.data):  # no CSV header to check
         check_columns(csv_columns(args.data), chain, args.lock)
     if not args.lock:

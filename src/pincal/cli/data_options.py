@@ -41,6 +41,20 @@ def add_program_quaternion_order(cmd: argparse.ArgumentParser) -> None:
     )
 
 
+def check_lock(chain: Robot, lock: tuple[str, ...]) -> None:
+    """Refuse ``--lock`` joints that are not on ``chain``.
+
+    Raises:
+        DataError: a locked joint not between the base and the tip.
+    """
+    unknown = [j for j in lock if j not in chain.joint_names]
+    if unknown:
+        raise DataError(
+            f"--lock {','.join(unknown)}: not joints between the base and {chain.tip} "
+            f"({', '.join(chain.joint_names)})"
+        )
+
+
 def locked_robot(args: argparse.Namespace) -> Robot:
     """The ``--robot`` chain to ``--tip``, without the ``--lock`` joints (held at neutral).
 
@@ -51,12 +65,7 @@ def locked_robot(args: argparse.Namespace) -> Robot:
     from .common import robot_options
 
     chain = load_robot(args.robot, tip=args.tip, **robot_options(args))
-    unknown = [j for j in args.lock if j not in chain.joint_names]
-    if unknown:
-        raise DataError(
-            f"--lock {','.join(unknown)}: not joints between the base and {chain.tip} "
-            f"({', '.join(chain.joint_names)})"
-        )
+    check_lock(chain, args.lock)
     if not args.lock:
         return chain
     if len(args.lock) == chain.n_joints:
