@@ -41,7 +41,7 @@ listed effect (compliance, harmonic 1 or 2, encoder scale, backlash on any joint
 (``listed_rest``). These are the references an ideal calibrator would leave, noise aside.
 
 Runs, per robot x effect x M x N (``--poses``) x seed: ``pincal calibrate ROBOT data.csv --noise SIGMA
---report r.json`` and ``pincal diagnose ROBOT data.csv --noise SIGMA --json d.json``. Recorded: exit
+--test truth.csv --report r.json`` and ``pincal diagnose ROBOT data.csv --noise SIGMA --json d.json``. Recorded: exit
 codes, times, the residual verdict and ``unexplained_mm``, the causes calibrate kept (the report's
 ``choice.cause`` / ``extension``) and the cause diagnose named, and any "implausible" flag in either JSON.
 
@@ -49,7 +49,11 @@ Acceptance (printed at the end; exit status 1 when one fails):
 
 1. every rigid control: verdict ``explained``;
 2. every outside effect (bending, drift, sin3, cubic) at M >= 3: verdict ``unexplained`` and
-   ``unexplained_mm`` within a factor 2 of the true structure RMS;
+   ``unexplained_mm`` within a factor 2 of the true RMS of the structure the final model leaves
+   (``left``: the calibrated model's error against the noise-free truth on the same poses, given to
+   ``calibrate`` as ``--test``, which scores and never fits). ``unexplained_mm`` is defined as what
+   the final model leaves above the noise; when a listed cause stands in for part of an outside
+   effect, that is less than the effect's whole RMS (``struct``), which the ratios print beside it;
 3. the pair: both listed effects named (by calibrate), or verdict ``unexplained``;
 4. calibrate and diagnose name the same cause (the same first cause, or both none);
 5. no run exits with a status other than 0.
@@ -596,6 +600,7 @@ class Result:
     noise_mm: float | None = None
     noise_source: str | None = None
     rms_after_mm: float | None = None
+    left_true_mm: float | None = None  # the final model against the noise-free truth, same poses
     cal_causes: list[str] = field(default_factory=list)
     diag_cause: str | None = None
     implausible: list[str] = field(default_factory=list)
@@ -622,6 +627,7 @@ def run_case(case: Case, robots: dict[str, Robot], sigma_mm: float, workdir: Pat
     points = truth.points(q_reached + errors)
     if not errors.any():  # a point displacement (bending, drift), not a joint error
         points = points + effect.displacement
+    clean = points
     points = points + rng.normal(0.0, sigma_mm * 1e-3, points.shape)
     ref = (
         reference(robot, truth, q_reached, effect) if case.effect != "rigid" else Reference(0.0, 0.0, "none")
@@ -638,11 +644,15 @@ def run_case(case: Case, robots: dict[str, Robot], sigma_mm: float, workdir: Pat
     stem = f"{case.robot}_{case.effect}_M{case.multiple:g}_N{case.n_poses}_s{case.seed}"
     data = workdir / f"{stem}.csv"
     write_csv(data, robot.joints, q_cmd, points)
+    truth_csv = workdir / f"{stem}.truth.csv"  # the same poses, noise-free: only scored, never fitted
+    write_csv(truth_csv, robot.joints, q_cmd, clean)
     noise = f"{sigma_mm:g}"
     tip = ["--tip", robot.tip]
     report = workdir / f"{stem}.report.json"
     cal = run_pincal(
-        ["calibrate", case.robot, str(data), *tip, "--noise", noise, "--report", str(report)], report
+        ["calibrate", case.robot, str(data), *tip, "--noise", noise, "--test", str(truth_csv)]
+        + ["--report", str(report)],
+        report,
     )
     diag_json = workdir / f"{stem}.diagnose.json"
     diag = run_pincal(
@@ -657,6 +667,7 @@ def run_case(case: Case, robots: dict[str, Robot], sigma_mm: float, workdir: Pat
         result.noise_mm = residual.get("noise_mm")
         result.noise_source = residual.get("noise_source")
         result.rms_after_mm = ((cal.payload.get("train") or {}).get("after") or {}).get("rms_mm")
+        result.left_true_mm = ((cal.payload.get("test") or {}).get("after") or {}).get("rms_mm")
         result.cal_causes = calibrate_causes(cal.payload)
         diagnosis = (cal.payload.get("choice") or {}).get("diagnosis")
         flags = implausible_named(cal.payload, result.cal_causes, diagnosis)
@@ -687,7 +698,7 @@ def _short(cause: str | None) -> str:
 def print_table(results: Iterable[Result]) -> None:
     """One line per case."""
     head = (
-        f"{'robot':6} {'effect':8} {'M':>3} {'N':>4} {'s':>2} {'struct':>7} {'rigidR':>7} {'listR':>7} "
+        f"{'robot':6} {'effect':8} {'M':>3} {'N':>4} {'s':>2} {'struct':>7} {'left':>7} {'listR':>7} "
         f"{'verdict':12} {'unexpl':>7} {'ratio':>6} {'rmsA':>6} {'calibrate':24} {'diagnose':20} "
         f"{'rc':5} {'t_cal':>6} {'t_dia':>6} impl"
     )
@@ -695,11 +706,11 @@ def print_table(results: Iterable[Result]) -> None:
     print("-" * len(head))
     for r in results:
         c = r.case
-        ratio = r.unexplained_mm / r.structure_mm if r.unexplained_mm is not None and r.structure_mm else None
+        ratio = r.unexplained_mm / r.left_true_mm if r.unexplained_mm is not None and r.left_true_mm else None
         cal = ",".join(_short(x) for x in r.cal_causes) or "none"
         print(
             f"{c.robot:6} {c.effect:8} {c.multiple:>3g} {c.n_poses:>4} {c.seed:>2} {r.structure_mm:7.3f} "
-            f"{r.rigid_rest_mm:7.3f} {r.listed_rest_mm:7.3f} {str(r.verdict):12} {_fmt(r.unexplained_mm):>7} "
+            f"{_fmt(r.left_true_mm):>7} {r.listed_rest_mm:7.3f} {str(r.verdict):12} {_fmt(r.unexplained_mm):>7} "
             f"{_fmt(ratio, '.2f'):>6} {_fmt(r.rms_after_mm):>6} {cal[:24]:24} {_short(r.diag_cause)[:20]:20} "
             f"{r.rc_cal},{r.rc_diag:<3} {r.t_cal:6.1f} {r.t_diag:6.1f} {len(r.implausible)}"
         )
@@ -731,16 +742,17 @@ def acceptance(results: list[Result]) -> list[tuple[str, int, int, list[str]]]:
     outside = [r for r in results if r.case.effect in OUTSIDE and r.case.multiple >= 3]
     fails = []
     for r in outside:
-        ok_ratio = r.unexplained_mm is not None and 0.5 <= r.unexplained_mm / r.structure_mm <= 2.0
+        left = r.left_true_mm
+        ok_ratio = r.unexplained_mm is not None and bool(left) and 0.5 <= r.unexplained_mm / left <= 2.0
         if r.verdict != "unexplained" or not ok_ratio:
             fails.append(
-                f"{label(r)}: verdict {r.verdict}, unexplained {_fmt(r.unexplained_mm)} mm vs structure "
-                f"{r.structure_mm:.3f} (rigid rest {r.rigid_rest_mm:.3f}, listed rest {r.listed_rest_mm:.3f} "
-                f"[{r.listed_best}]), calibrate named {r.cal_causes or 'none'}"
+                f"{label(r)}: verdict {r.verdict}, unexplained {_fmt(r.unexplained_mm)} mm vs left "
+                f"{_fmt(left)} mm (structure {r.structure_mm:.3f}, rigid rest {r.rigid_rest_mm:.3f}, listed "
+                f"rest {r.listed_rest_mm:.3f} [{r.listed_best}]), calibrate named {r.cal_causes or 'none'}"
             )
     out.append(
         (
-            "2. outside effect -> unexplained, unexplained_mm within x2 of structure",
+            "2. outside effect -> unexplained, unexplained_mm within x2 of what the final model leaves",
             len(outside) - len(fails),
             len(outside),
             fails,
@@ -787,12 +799,15 @@ def print_ratios(results: list[Result]) -> None:
     for (robot, effect), rs in sorted(groups.items()):
         parts = []
         for label, ref in (
+            ("left", "left_true_mm"),
             ("struct", "structure_mm"),
             ("rigidR", "rigid_rest_mm"),
             ("listR", "listed_rest_mm"),
         ):
             values = [
-                r.unexplained_mm / getattr(r, ref) for r in rs if getattr(r, ref) > 0.01 and r.unexplained_mm
+                r.unexplained_mm / getattr(r, ref)
+                for r in rs
+                if (getattr(r, ref) or 0.0) > 0.01 and r.unexplained_mm
             ]
             if values:
                 parts.append(f"{label} {min(values):.2f}-{max(values):.2f}")
