@@ -41,8 +41,8 @@ listed effect (compliance, harmonic 1 or 2, encoder scale, backlash on any joint
 (``listed_rest``). These are the references an ideal calibrator would leave, noise aside.
 
 Runs, per robot x effect x M x N (``--poses``) x seed: ``pincal calibrate ROBOT data.csv --noise SIGMA
---test truth.csv --report r.json`` and ``pincal diagnose ROBOT data.csv --noise SIGMA --json d.json``. Recorded: exit
-codes, times, the residual verdict and ``unexplained_mm``, the causes calibrate kept (the report's
+--test truth.csv --report r.json`` and ``pincal diagnose ROBOT data.csv --noise SIGMA --json d.json``.
+Recorded: exit codes, times, the residual verdict and ``unexplained_mm``, the causes calibrate kept (the report's
 ``choice.cause`` / ``extension``) and the cause diagnose named, and any "implausible" flag in either JSON.
 
 Acceptance (printed at the end; exit status 1 when one fails):
@@ -710,7 +710,8 @@ def print_table(results: Iterable[Result]) -> None:
         cal = ",".join(_short(x) for x in r.cal_causes) or "none"
         print(
             f"{c.robot:6} {c.effect:8} {c.multiple:>3g} {c.n_poses:>4} {c.seed:>2} {r.structure_mm:7.3f} "
-            f"{_fmt(r.left_true_mm):>7} {r.listed_rest_mm:7.3f} {str(r.verdict):12} {_fmt(r.unexplained_mm):>7} "
+            f"{_fmt(r.left_true_mm):>7} {r.listed_rest_mm:7.3f} {str(r.verdict):12} "
+            f"{_fmt(r.unexplained_mm):>7} "
             f"{_fmt(ratio, '.2f'):>6} {_fmt(r.rms_after_mm):>6} {cal[:24]:24} {_short(r.diag_cause)[:20]:20} "
             f"{r.rc_cal},{r.rc_diag:<3} {r.t_cal:6.1f} {r.t_diag:6.1f} {len(r.implausible)}"
         )
