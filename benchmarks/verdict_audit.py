@@ -42,8 +42,9 @@ listed effect (compliance, harmonic 1 or 2, encoder scale, backlash on any joint
 
 Runs, per robot x effect x M x N (``--poses``) x seed: ``pincal calibrate ROBOT data.csv --noise SIGMA
 --test truth.csv --report r.json`` and ``pincal diagnose ROBOT data.csv --noise SIGMA --json d.json``.
-Recorded: exit codes, times, the residual verdict and ``unexplained_mm``, the causes calibrate kept (the report's
-``choice.cause`` / ``extension``) and the cause diagnose named, and any "implausible" flag in either JSON.
+Recorded: exit codes, times, the residual verdict and ``unexplained_mm``, the causes calibrate kept
+(the report's ``choice.cause`` / ``extension``) and the cause diagnose named, and any "implausible"
+flag in either JSON.
 
 Acceptance (printed at the end; exit status 1 when one fails):
 
