@@ -745,7 +745,8 @@ def acceptance(results: list[Result]) -> list[tuple[str, int, int, list[str]]]:
     fails = []
     for r in outside:
         left = r.left_true_mm
-        ok_ratio = r.unexplained_mm is not None and bool(left) and 0.5 <= r.unexplained_mm / left <= 2.0
+        ok_ratio = r.unexplained_mm is not None and left is not None and left > 0
+        ok_ratio = ok_ratio and 0.5 <= (r.unexplained_mm or 0.0) / (left or 1.0) <= 2.0
         if r.verdict != "unexplained" or not ok_ratio:
             fails.append(
                 f"{label(r)}: verdict {r.verdict}, unexplained {_fmt(r.unexplained_mm)} mm vs left "
