@@ -106,6 +106,7 @@ def oracle_table(oracles: list[Oracle]) -> str:
     lines = [
         "\nwhat the pull can reach at best (oracles choosing with the held-out placements, guard off;"
         " benchmarks/mukca_oracle.py)",
+        "",
         "| robot | best single weight: median [mm] | best single weight with no pair worse than the URDF"
         " | best weight or nominal per training placement, no pair worse: median [mm] | MUKCa [mm] |",
         "|---|---|---|---|---|",
