@@ -22,7 +22,7 @@ held-out MAE, pairs worse than the URDF as is, the pull's weight chosen, the gua
 Usage::
 
     python benchmarks/mukca.py DATASETS_DIR [--plot PNG] [--json FILE] [--model placements]
-        [--protocol-only] [--markdown docs/results/mukca.md]
+        [--protocol-only] [--oracle] [--markdown docs/results/mukca.md]
 """
 
 from __future__ import annotations
@@ -33,7 +33,6 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import argparse  # noqa: E402
-import json  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
 from collections import Counter  # noqa: E402
@@ -42,7 +41,8 @@ from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
-from mukca_results import Pair, protocol_rows, worse_pairs, write_page  # noqa: E402
+from mukca_oracle import oracle, oracle_table  # noqa: E402
+from mukca_results import Pair, plot, protocol_rows, worse_pairs, write_json, write_page  # noqa: E402
 
 import pincal  # noqa: E402
 from pincal.diagnose import diagnose  # noqa: E402
@@ -262,33 +262,6 @@ def pooled_median(pools: list[Pooled], floor: bool = False) -> float:
     return float(np.median(values))
 
 
-def plot(rows: list[Judged], path: Path) -> None:
-    """Each placement's held-out MAE (median over the calibrations from the robot's other
-    placements), URDF as is and calibrated, on a log scale."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    keys = sorted({(r.robot, r.test) for r in rows})
-    before = [np.median([r.urdf.point_mae_mm for r in rows if (r.robot, r.test) == k]) for k in keys]
-    after = [np.median([r.after.point_mae_mm for r in rows if (r.robot, r.test) == k]) for k in keys]
-    fig, ax = plt.subplots(figsize=(10, 4))
-    x = np.arange(len(keys))
-    ax.bar(x - 0.2, before, 0.4, label="URDF as is")
-    ax.bar(x + 0.2, after, 0.4, label="calibrated on another placement")
-    ax.set_yscale("log")
-    ax.set_xticks(x, [f"{robot}/{test}" for robot, test in keys], rotation=60, ha="right", fontsize=7)
-    ax.set_ylabel("held-out mean distance from the socket [mm]")
-    ax.set_title("MUKCa sockets: each placement judged with models calibrated on the others (median)")
-    ax.grid(axis="y", which="both", alpha=0.3)
-    ax.legend()
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-
-
 def arguments() -> argparse.Namespace:
     """The command line."""
     parser = argparse.ArgumentParser(
@@ -306,19 +279,10 @@ def arguments() -> argparse.Namespace:
         "--protocol-only", action="store_true", help="the protocol alone (no diagnosis, pooling, plot)"
     )
     parser.add_argument("--markdown", type=Path, help="write the results page here (docs/results/mukca.md)")
+    parser.add_argument(
+        "--oracle", action="store_true", help="also what the pull reaches at best (mukca_oracle)"
+    )
     return parser.parse_args()
-
-
-def write_json(path: Path, rows: list[Judged], pools: list[Pooled]) -> None:
-    """Every judged combination, and every placement left out of a pooled calibration."""
-    record: list[dict[str, Any]] = [
-        {**vars(r.pair()), "urdf": r.urdf.to_dict(), "after": r.after.to_dict()} for r in rows
-    ]
-    record += [
-        {"robot": p.robot, "left_out": p.test, "held": p.held.to_dict(), "floor": p.floor.to_dict()}
-        for p in pools
-    ]
-    path.write_text(json.dumps(record, indent=1))
 
 
 def main() -> None:
@@ -354,9 +318,13 @@ def main() -> None:
         print("\n" + more)
         plot(rows, args.plot)
         print(f"\nplot: {args.plot}")
+    if args.oracle:
+        robots = sorted((root / "data").iterdir())
+        more += "\n" + oracle_table([oracle(d, root / "urdf" / URDFS[d.name.split("_")[0]]) for d in robots])
+        print(more[more.index("\nwhat the pull") :])
     print(f"whole benchmark {time.perf_counter() - start:.0f} s")
     if args.markdown is not None:
-        flags = " --protocol-only" if args.protocol_only else ""
+        flags = (" --protocol-only" if args.protocol_only else "") + (" --oracle" if args.oracle else "")
         write_page(
             args.markdown,
             pairs,

@@ -10,9 +10,11 @@ judge; its README's numbers reproduced first). The iiwa14 has no figure there.
 
 from __future__ import annotations
 
+import json
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -108,3 +110,43 @@ def write_page(path: Path, pairs: Sequence[Pair], more: str, command: str) -> No
     )
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(text)
+
+
+def write_json(path: Path, rows: Sequence[Any], pools: Sequence[Any]) -> None:
+    """Every judged combination (``mukca.Judged``), and every placement left out of a pooled
+    calibration (``mukca.Pooled``)."""
+    record: list[dict[str, Any]] = [
+        {**vars(r.pair()), "urdf": r.urdf.to_dict(), "after": r.after.to_dict()} for r in rows
+    ]
+    record += [
+        {"robot": p.robot, "left_out": p.test, "held": p.held.to_dict(), "floor": p.floor.to_dict()}
+        for p in pools
+    ]
+    path.write_text(json.dumps(record, indent=1))
+
+
+def plot(rows: Sequence[Any], path: Path) -> None:
+    """Each placement's held-out MAE (median over the calibrations from the robot's other
+    placements: ``mukca.Judged`` rows), URDF as is and calibrated, on a log scale."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    keys = sorted({(r.robot, r.test) for r in rows})
+    before = [np.median([r.urdf.point_mae_mm for r in rows if (r.robot, r.test) == k]) for k in keys]
+    after = [np.median([r.after.point_mae_mm for r in rows if (r.robot, r.test) == k]) for k in keys]
+    fig, ax = plt.subplots(figsize=(10, 4))
+    x = np.arange(len(keys))
+    ax.bar(x - 0.2, before, 0.4, label="URDF as is")
+    ax.bar(x + 0.2, after, 0.4, label="calibrated on another placement")
+    ax.set_yscale("log")
+    ax.set_xticks(x, [f"{robot}/{test}" for robot, test in keys], rotation=60, ha="right", fontsize=7)
+    ax.set_ylabel("held-out mean distance from the socket [mm]")
+    ax.set_title("MUKCa sockets: each placement judged with models calibrated on the others (median)")
+    ax.grid(axis="y", which="both", alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
