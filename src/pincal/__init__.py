@@ -41,9 +41,9 @@ if TYPE_CHECKING:  # the same names for type checkers; at run time each loads on
     from .guard import Pull
     from .identifiability import Identifiability
     from .kinematics import Chain, forward, joint_jacobian, tip_jacobian
-    from .mdh import MdhModel, MdhTable, mdh_table
+    from .mdh import MdhModel, MdhTable, make_model, mdh_table
     from .measurements import Measurement, Problem, all_pairs, gao_pairs
-    from .models import Model, OffsetsModel, PlacementsModel, PoeModel, make_model
+    from .models import Model, OffsetsModel, PlacementsModel, PoeModel
     from .outliers import find_outliers, pose_scores
     from .pipeline import calibrate
     from .planning import Design, Plan, candidate_poses, plan_poses, write_poses
@@ -117,7 +117,7 @@ _LAZY: dict[str, str] = {
     "OffsetsModel": "models",
     "PlacementsModel": "models",
     "PoeModel": "models",
-    "make_model": "models",
+    "make_model": "mdh",
     "find_outliers": "outliers",
     "pose_scores": "outliers",
     "calibrate": "pipeline",

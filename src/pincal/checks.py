@@ -9,8 +9,9 @@ Each check raises :class:`~pincal.errors.DataError` with what is wrong and how t
 - :func:`check_scale`: the measured points spread about as far as the tip does at the same
   joint values (a factor of 1000 means millimetres given as metres, or the reverse; a tip that
   spreads as far with the angles in the other unit means degrees read as radians, or the reverse);
-- :func:`quaternion_columns`: all four quaternion columns or none (``--quaternion-order``);
-- :func:`check_locked`: a joint held by ``--lock`` does not move in its column.
+
+The checks of the columns alone, while a file is read (all four quaternion columns or none, a
+locked joint's column still), are :mod:`pincal.csv_table`'s.
 """
 
 from __future__ import annotations
@@ -18,13 +19,11 @@ from __future__ import annotations
 import difflib
 import re
 from collections.abc import Iterable, Sequence
-from pathlib import Path
 
 import numpy as np
 
 from .data import Dataset
 from .errors import DataError
-from .options import QUATERNION_ORDERS
 from .robots import Robot
 
 LIMIT_TOLERANCE = (np.deg2rad(1.0), 1e-3)  # [rad] revolute, [m] prismatic, beyond the URDF limits
@@ -40,8 +39,6 @@ SYSTEMATIC = 0.1
 REPEATED_SLACK = np.deg2rad(10.0)
 MAX_SPREAD = 1e6  # [m]: measured points farther apart than this are a wrong unit or a bad cell
 SCALE_RATIO = 10.0  # measured spread / tip spread beyond which the units are suspect
-LOCK_TOLERANCE = 1e-3  # [rad or m]: a locked joint's column may move this much and count as still
-_QUAT = ("qw", "qx", "qy", "qz")
 _JOINT_LIKE = re.compile(r"^(q|j|theta|joint|axis)[_ ]?\d+$|joint", re.IGNORECASE)
 
 
@@ -241,53 +238,6 @@ def _other_angle_unit(robot: Robot, data: Dataset, degrees: bool) -> np.ndarray 
     with np.errstate(over="ignore", invalid="ignore"):
         size = spread(tips)
     return tips if np.isfinite(size) and size > 0 else None
-
-
-def quaternion_columns(path: str | Path, header: Sequence[str], order: str = "wxyz") -> list[str]:
-    """The file's quaternion columns in the order w, x, y, z (none when it has none).
-
-    ``wxyz`` reads each of ``qw,qx,qy,qz`` as its name says; ``xyzw`` reads the four, left to
-    right as the header has them, as x, y, z, w.
-
-    Raises:
-        DataError: some but not all of the four columns (a partial quaternion).
-    """
-    if order not in QUATERNION_ORDERS:
-        raise DataError(f"unknown quaternion order {order!r}: use {' or '.join(QUATERNION_ORDERS)}")
-    present = [c for c in header if c in _QUAT]
-    if not present:
-        return []
-    if len(present) < len(_QUAT):
-        missing = ", ".join(c for c in _QUAT if c not in present)
-        raise DataError(
-            f"{path}: the header has {', '.join(present)} but not {missing}: an orientation needs all "
-            "four quaternion columns qw,qx,qy,qz; add the missing one(s), or rename or remove the others "
-            "for position data"
-        )
-    if order == "xyzw":
-        return [present[3], present[0], present[1], present[2]]
-    return list(_QUAT)
-
-
-def check_locked(path: str | Path, names: Sequence[str], values: np.ndarray, degrees: bool = False) -> None:
-    """Refuse a locked joint (``--lock``) whose column moves: it would be held at its neutral
-    value while the robot moved it.
-
-    Args:
-        path: the data file (for the message).
-        names: the locked joints that have a column.
-        values: their columns as read (rows, len(names)).
-        degrees: the values are degrees (prismatic joints are taken as revolute here).
-    """
-    for k, name in enumerate(names):
-        col = values[:, k]
-        span = float(col.max() - col.min()) if len(col) else 0.0
-        if (np.deg2rad(span) if degrees else span) > LOCK_TOLERANCE:
-            raise DataError(
-                f"{path}: --lock {name}, but its column moves (from {col.min():.6g} to {col.max():.6g}): "
-                f"a locked joint is held at its neutral value, so drop --lock {name} to calibrate "
-                "with its values"
-            )
 
 
 def spread(points: np.ndarray) -> float:

@@ -24,11 +24,11 @@ from typing import Any
 
 import numpy as np
 
-from .crossval import CrossValidation
-from .diagnose import Diagnosis, diagnose
+from .diagnosis import Diagnosis, diagnose_with
 from .effects import Extension, Payload
 from .errors import IdentifiabilityError
-from .selection import Selection, select_on
+from .forward_selection import Selection, select_on
+from .kfold import CrossValidation, Fit
 from .solver import Setup, set_up
 
 #: Rounds of selection and diagnosis for ``extension="auto"``.
@@ -176,6 +176,7 @@ def choose(
     wanted: tuple[str, ...] | str | None,
     extension: Extension | str | None,
     *,
+    fit: Fit,
     folds: int = 5,
     seed: int = 0,
     payload: Payload | None = None,
@@ -190,6 +191,7 @@ def choose(
         setup: the problem on the poses to fit (with the extension when one is given).
         wanted: ``"auto"``, None (every parameter) or the names.
         extension: ``"auto"``, an :class:`Extension` or None.
+        fit: the calibration the diagnosis fits with (:func:`pincal.calibrate`).
         folds: K of the diagnosis' cross-validation.
         seed: seed of its folds.
         payload: a load on the tip, for the gravity torques of the candidates.
@@ -211,7 +213,8 @@ def choose(
     cause: Extension | None = None
     for _ in range(MAX_ROUNDS):
         try:
-            diag = diagnose(
+            diag = diagnose_with(
+                fit,
                 robot,
                 data,
                 model,  # type: ignore[arg-type]

@@ -53,11 +53,9 @@ def blocks(problem: Problem) -> list[Problem]:
     """The problems on consecutive blocks of :data:`BLOCK_POSES` poses (made once per problem)."""
     made = problem.__dict__.get("_blocks")
     if made is None:
-        from .measurements import Problem
-
         n = len(problem.data)
         parts = [problem.data.subset(np.arange(a, min(a + BLOCK_POSES, n))) for a in range(0, n, BLOCK_POSES)]
-        made = [Problem(problem.model, problem.measurement, part, problem.extension) for part in parts]
+        made = [type(problem)(problem.model, problem.measurement, part, problem.extension) for part in parts]
         problem.__dict__["_blocks"] = made
     return made
 
@@ -183,6 +181,4 @@ def sample_poses(data: Dataset) -> Dataset:
 
 def sample(problem: Problem) -> Problem:
     """The problem on a random subset of :data:`SAMPLE_POSES` poses (seed 0, in row order)."""
-    from .measurements import Problem
-
-    return Problem(problem.model, problem.measurement, sample_poses(problem.data), problem.extension)
+    return type(problem)(problem.model, problem.measurement, sample_poses(problem.data), problem.extension)

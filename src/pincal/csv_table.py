@@ -24,7 +24,10 @@ import numpy as np
 
 from . import files
 from .errors import DataError
+from .options import QUATERNION_ORDERS
 
+LOCK_TOLERANCE = 1e-3  # [rad or m]: a locked joint's column may move this much and count as still
+_QUAT = ("qw", "qx", "qy", "qz")
 #: Most columns a measurement CSV may have (a chain of 100 joints and its measurements has ~110).
 MAX_COLUMNS = 10_000
 #: Most data rows a measurement CSV may have.
@@ -179,3 +182,50 @@ def _not_a_number(path: str | Path, r: int, row: list[str], cols: list[int], nam
         except ValueError:
             raise DataError(f"{path}: data row {r}, column {names[k]}: {row[c]!r} is not a number") from None
     return []
+
+
+def quaternion_columns(path: str | Path, header: Sequence[str], order: str = "wxyz") -> list[str]:
+    """The file's quaternion columns in the order w, x, y, z (none when it has none).
+
+    ``wxyz`` reads each of ``qw,qx,qy,qz`` as its name says; ``xyzw`` reads the four, left to
+    right as the header has them, as x, y, z, w.
+
+    Raises:
+        DataError: some but not all of the four columns (a partial quaternion).
+    """
+    if order not in QUATERNION_ORDERS:
+        raise DataError(f"unknown quaternion order {order!r}: use {' or '.join(QUATERNION_ORDERS)}")
+    present = [c for c in header if c in _QUAT]
+    if not present:
+        return []
+    if len(present) < len(_QUAT):
+        missing = ", ".join(c for c in _QUAT if c not in present)
+        raise DataError(
+            f"{path}: the header has {', '.join(present)} but not {missing}: an orientation needs all "
+            "four quaternion columns qw,qx,qy,qz; add the missing one(s), or rename or remove the others "
+            "for position data"
+        )
+    if order == "xyzw":
+        return [present[3], present[0], present[1], present[2]]
+    return list(_QUAT)
+
+
+def check_locked(path: str | Path, names: Sequence[str], values: np.ndarray, degrees: bool = False) -> None:
+    """Refuse a locked joint (``--lock``) whose column moves: it would be held at its neutral
+    value while the robot moved it.
+
+    Args:
+        path: the data file (for the message).
+        names: the locked joints that have a column.
+        values: their columns as read (rows, len(names)).
+        degrees: the values are degrees (prismatic joints are taken as revolute here).
+    """
+    for k, name in enumerate(names):
+        col = values[:, k]
+        span = float(col.max() - col.min()) if len(col) else 0.0
+        if (np.deg2rad(span) if degrees else span) > LOCK_TOLERANCE:
+            raise DataError(
+                f"{path}: --lock {name}, but its column moves (from {col.min():.6g} to {col.max():.6g}): "
+                f"a locked joint is held at its neutral value, so drop --lock {name} to calibrate "
+                "with its values"
+            )

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from .csv_table import content_lines, parse_header, read_columns
+from .csv_table import check_locked, content_lines, parse_header, quaternion_columns, read_columns
 from .errors import DataError
 from .files import STDIN, atomic_write, first_line
 from .files import read_input_text as read_input_text  # re-exported: tests count its reads
@@ -195,13 +195,9 @@ def read_csv(
     """
     if units not in UNITS:
         raise DataError(f"unknown unit {units!r}: use m or mm")
-    from .checks import check_locked, quaternion_columns  # they import this module
-
     header = csv_columns(path)
     quat_order = quaternion_columns(path, header, quaternion_order)
     if measure == "points" or (measure is None and "point" in header and "x" not in header):
-        from .point_files import read_points_csv  # it reads a Dataset: imported here, not above
-
         return read_points_csv(path, joint_names, degrees, units, prismatic)
     required = [*joint_names, "x", "y", "z"]
     still = [j for j in locked if j in header and j not in joint_names]
@@ -213,6 +209,33 @@ def read_csv(
     quats = unit_quaternions(path, values[:, n + 3 : n + 7]) if quat_order else None
     check_locked(path, still, values[:, n + 3 + len(quat_order) :], degrees)
     return Dataset(tuple(joint_names), q, points, quats)
+
+
+def read_points_csv(
+    path: str | Path,
+    joint_names: Sequence[str],
+    degrees: bool = False,
+    units: str = "m",
+    prismatic: Sequence[bool] | None = None,
+) -> Dataset:
+    """Fixed-point data as a CSV (read once): a column per chain joint, as :func:`pincal.data.read_csv`
+    reads them, and a ``point`` column naming each row's point (names in order of first appearance).
+
+    Raises:
+        DataError: the file is missing or malformed, no ``point`` column, an empty point name.
+    """
+    if "point" not in csv_columns(path):
+        raise DataError(f"{path}: no 'point' column; fixed-point data names each row's point there")
+    what = f"every chain joint ({', '.join(joint_names)}) and point"
+    values, points = read_columns(path, joint_names, what, text_column="point")  # streamed (issue 33)
+    q = joint_values(values, degrees, units, prismatic)
+    names: dict[str, int] = {}
+    labels = np.empty(len(points), dtype=int)
+    for r, name in enumerate(points):
+        if not name:
+            raise DataError(f"{path}: data row {r + 1} has no point name in column 'point'")
+        labels[r] = names.setdefault(name, len(names))
+    return Dataset(tuple(joint_names), q, np.zeros((len(q), 3)), labels=labels, point_names=tuple(names))
 
 
 def joint_values(
@@ -297,8 +320,6 @@ def read_program(
         return read_joints(path, robot, degrees, units)
     if not {"x", "y", "z"} <= header:
         raise DataError(f"{path}: a program needs a column per joint ({', '.join(names)}) or targets x,y,z")
-    from .checks import quaternion_columns  # it imports this module
-
     quat = quaternion_columns(path, csv_columns(path), quaternion_order)  # all four or none, in file order
     values = read_table(path, ["x", "y", "z", *quat], "x,y,z (and optionally qw,qx,qy,qz)")
     quats = unit_quaternions(path, values[:, 3:]) if quat else None

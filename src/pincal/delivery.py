@@ -32,8 +32,8 @@ from .data import Dataset
 from .effects import Extension
 from .evaluation import ErrorStats, evaluate
 from .identifiability import Identifiability
+from .mdh import make_model
 from .measurements import Measurement, Problem
-from .models import make_model
 from .robots import Robot, load_robot
 from .solver import Setup, assess, natural_scale, register, solve
 from .urdf_writer import corrected_files, corrected_urdf

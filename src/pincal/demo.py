@@ -19,7 +19,7 @@ import numpy as np
 from .crossval import cross_validate
 from .data import Dataset
 from .evaluation import evaluate
-from .models import MODELS
+from .options import MODELS
 from .pipeline import calibrate
 from .robots import load_robot
 from .simulation import simulate

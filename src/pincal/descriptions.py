@@ -5,7 +5,7 @@ NAME:=VALUE`` sets its ``<xacro:arg>`` values, and ``$(find PKG)`` resolves, in 
 folder given as ``--package-path PKG=DIR``, then to a package found on ``ROS_PACKAGE_PATH`` (a
 folder named PKG, or holding a ``package.xml`` that names PKG, up to three levels below each
 entry), then to ``share/PKG`` of an ``AMENT_PREFIX_PATH`` prefix. The URDF text a xacro gives is
-checked like any URDF (:func:`pincal.robots.read_urdf_text`). A UR kinematics YAML, if given, is
+checked like any URDF (:func:`read_urdf_text`). A UR kinematics YAML, if given, is
 applied on top of the result (:mod:`pincal.ur_frames`).
 """
 
@@ -17,15 +17,12 @@ import re
 import threading
 from collections.abc import Iterator, Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from .errors import RobotError
-from .inputs import note_input
+from .inputs import note_input, read_bytes
 from .sandbox import run_limited
+from .ur_frames import URKinematics, apply_ur_kinematics, read_ur_kinematics
 from .urdf_checks import declares_dtd, without_default_namespace
-
-if TYPE_CHECKING:
-    from .ur_yaml import URKinematics
 
 #: Suffixes of the robot files ``load_robot`` reads (a ``.urdf.xacro`` ends in ``.xacro``).
 URDF_SUFFIXES = (".urdf", ".xacro")
@@ -269,6 +266,27 @@ def _declared_args(files: list[Path]) -> set[str]:
     return names
 
 
+MAX_URDF_BYTES = 50_000_000  # [bytes] far above any robot description
+
+
+def read_urdf_text(path: Path) -> str:
+    """The text of a URDF, refused if it declares entities or an external DTD.
+
+    Kinematic calibration reads only the URDF itself: meshes (``package://`` or relative paths)
+    are never opened, and a DOCTYPE that could make an XML parser read a local file, the
+    network, or expand entities (``<!ENTITY``, ``SYSTEM``, ``PUBLIC``) is refused before any
+    parser sees the text.
+
+    Raises:
+        RobotError: unreadable file, not UTF-8, too large, or a DOCTYPE with declarations.
+    """
+    try:
+        text = read_bytes(path, "URDF", MAX_URDF_BYTES, error=RobotError).decode("utf-8")  # bounded
+    except UnicodeDecodeError as exc:
+        raise RobotError(f"cannot read URDF {path}: {exc}") from None
+    return check_urdf_text(text, path)
+
+
 def robot_description(
     path: Path,
     xacro_args: Mapping[str, str] | None = None,
@@ -282,8 +300,6 @@ def robot_description(
     Raises:
         RobotError: the file cannot be read or processed, or options that need a xacro without one.
     """
-    from .robots import read_urdf_text
-
     if is_xacro(path):
         read_urdf_text(path)  # the same checks on the xacro's own text
         text = check_urdf_text(xacro_to_urdf(path, xacro_args, package_paths), path)
@@ -293,9 +309,6 @@ def robot_description(
         text = read_urdf_text(path)
     text = without_default_namespace(text)  # issue 33: the writers look elements up by plain name
     if kinematics is not None:
-        from .ur_frames import apply_ur_kinematics
-        from .ur_yaml import URKinematics, read_ur_kinematics
-
         given = kinematics if isinstance(kinematics, URKinematics) else read_ur_kinematics(kinematics)
         text = apply_ur_kinematics(text, given)
     return text

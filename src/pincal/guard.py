@@ -25,6 +25,7 @@ from scipy.optimize import OptimizeResult
 
 from .calibration import Calibration
 from .data import Dataset
+from .folds import held_out_rows
 from .identifiability import Identifiability
 from .measurements import Problem
 from .prior import PriorChoice, choose_weight, pulled
@@ -94,8 +95,6 @@ class Guard:
 def loo_squared_errors(setup: Setup, theta: np.ndarray, free: np.ndarray) -> np.ndarray:
     """Each pose's squared leave-one-pose-out validation error [m²] of the fit ``theta`` over
     the unknowns ``free``, with the pull of ``setup.prior_weight`` on the geometric ones."""
-    from .crossval import held_out_rows  # here: crossval runs the pipeline, which runs this
-
     problem = setup.problem
     jac = problem.jacobian(theta, free) * setup.scale[free]
     res = problem.residuals(theta)
@@ -152,8 +151,6 @@ def judged_on(setup: Setup) -> Setup:
 
 def _plain(setup: Setup, nominal: np.ndarray) -> np.ndarray:
     """Each pose's squared residual of the nominal model when nothing of it is fitted [m²]."""
-    from .crossval import held_out_rows  # here: crossval runs the pipeline, which runs this
-
     res = setup.problem.residuals(nominal)
     return np.array([float(res[rows] @ res[rows]) for rows in held_out_rows(setup.problem, None, 0)])
 

@@ -29,8 +29,8 @@ from .effects import Extension
 from .fixed_points import PointDistance
 from .identifiability import analyse, parameter_scale
 from .kinematics import Chain, forward
+from .mdh import make_model
 from .measurements import Measurement, Problem
-from .models import make_model
 from .robots import Robot
 
 #: Unit vectors to the vertices of a regular tetrahedron: the tool hypotheses around the guess.

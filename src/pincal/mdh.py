@@ -25,8 +25,11 @@ from typing import NamedTuple
 import numpy as np
 import pinocchio as pin
 
+from .errors import PincalError
 from .kinematics import Chain, right_twists
-from .models import Model
+from .models import Model, OffsetsModel, PlacementsModel, PoeModel
+from .options import MODELS
+from .robots import Robot
 from .twists import chain_twists
 
 #: Consecutive axes closer than this to parallel get Hayati's β [rad].
@@ -241,3 +244,17 @@ class MdhModel(Model):
                 ]
             out[2 * j] = right_twists(factors, local, self.n_params)
         return out
+
+
+def make_model(kind: str, robot: Robot) -> Model:
+    """The parameterization named ``kind`` (one of :data:`MODELS`) for ``robot`` (here, above every
+    kind: :class:`MdhModel` builds on :class:`~pincal.models.Model`)."""
+    classes: dict[str, type[Model]] = {
+        "placements": PlacementsModel,
+        "poe": PoeModel,
+        "mdh": MdhModel,
+        "offsets": OffsetsModel,
+    }
+    if kind not in classes:
+        raise PincalError(f"unknown model {kind!r}: choose one of {', '.join(MODELS)}")
+    return classes[kind](robot)

@@ -26,9 +26,7 @@ from functools import cached_property
 import numpy as np
 import pinocchio as pin
 
-from .errors import PincalError
 from .kinematics import Chain
-from .options import MODELS
 from .robots import Robot
 from .twists import Twists, left_jacobian, nominal_twists
 
@@ -177,18 +175,3 @@ class PoeModel(Model):
             if j < n - 1:  # the next placement G_j⁻¹ G_{j+1} holds G_j too; the tip's does not
                 out[2 * j + 1, :, 6 * j : 6 * j + 6] = -local
         return out
-
-
-def make_model(kind: str, robot: Robot) -> Model:
-    """The parameterization named ``kind`` (one of :data:`MODELS`) for ``robot``."""
-    from .mdh import MdhModel
-
-    classes: dict[str, type[Model]] = {
-        "placements": PlacementsModel,
-        "poe": PoeModel,
-        "mdh": MdhModel,
-        "offsets": OffsetsModel,
-    }
-    if kind not in classes:
-        raise PincalError(f"unknown model {kind!r}: choose one of {', '.join(MODELS)}")
-    return classes[kind](robot)

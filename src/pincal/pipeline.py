@@ -10,29 +10,29 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import replace
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
 
 from .balance import balanced_fit, choose_weight
 from .calibration import Calibration
+from .choice import ModelChoice, choose
 from .data import Dataset
 from .delivery import effect_on_top, settled
 from .effects import Extension, Payload
 from .errors import DataError
 from .fixed_points import PointDistance
+from .forward_selection import select_on
 from .guard import DEFAULT_PULL, Protected, Pull, protect
 from .identifiability import RCOND, Identifiability
+from .kfold import cross_validate_with
 from .measurements import ROTATION_WEIGHT
 from .models import Model
 from .options import LOSSES
 from .robots import Robot
 from .solver import Setup, assess, identifiable_set, register, screen_outliers, set_up, solve
 from .threads import limited
-
-if TYPE_CHECKING:
-    from .choice import ModelChoice
 
 #: How geometry and an effect share the fit (see :func:`calibrate`'s ``deliver``).
 DELIVERIES = ("balanced", "joint", "none")
@@ -168,7 +168,7 @@ def calibrate(
     fit_options: dict[str, Any] = dict(partial=partial, loss=loss, f_scale=f_scale, rcond=rcond)
     call = dict(options, **fit_options, params=params, extension=extension, payload=payload, deliver=deliver)
     call["pull"] = fit_options["pull"] = pull
-    choosing = dict(folds=folds, seed=seed, payload=payload, progress=progress)
+    choosing = dict(fit=calibrate, folds=folds, seed=seed, payload=payload, progress=progress)
     setup, choice, wanted, chosen = _chosen(
         robot, data, model, measure, wanted, ext, options, fit_options, choosing
     )
@@ -199,8 +199,6 @@ def _chosen(
 ) -> tuple[Setup, ModelChoice, Any, dict[str, Any]]:
     """The set-up to fit, what was chosen (:mod:`pincal.choice`), the parameters to fit and what
     the fit may reuse (``nominal``, ``every``); ``fit_options["partial"]`` set as the choice allows."""
-    from .choice import choose  # here: choice runs diagnose, which calls calibrate
-
     given = ext if isinstance(ext, Extension) else None
     setup = set_up(robot, data, model, measure, extension=given, **options)
     nominal, every = _checked(setup, wanted, fit_options)  # for "auto": refuse what "all" refuses
@@ -298,8 +296,6 @@ def _geometric_params(geometry: Setup, choice: ModelChoice, wanted: Any) -> tupl
     if choice.rounds:
         return choice.rounds[0].params
     if choice.params_mode == "auto":
-        from .selection import select_on  # selection cross-validates with this module's calibrate
-
         return select_on(geometry).params
     return wanted if isinstance(wanted, tuple) else None
 
@@ -331,10 +327,8 @@ def _judge(
     options: dict[str, Any],
 ) -> Callable[[], Any]:
     """The nested cross-validation of the whole call: ``calibrate(**options)`` without each fold."""
-    from .crossval import cross_validate
-
-    pairing = options["pairs"] if isinstance(options["pairs"], str) else "all"
-    return lambda: cross_validate(robot, data, model, measure, folds, seed, **{**options, "pairs": pairing})
+    call = {**options, "pairs": options["pairs"] if isinstance(options["pairs"], str) else "all"}
+    return lambda: cross_validate_with(calibrate, robot, data, model, measure, folds, seed, **call)
 
 
 def _checked(

@@ -1,4 +1,5 @@
-"""Reading fixed-point data: a CSV with a ``point`` column, or MUKCa's folders of sockets.
+"""Reading fixed-point data: MUKCa's folders of sockets (a CSV with a ``point`` column is
+:func:`pincal.data.read_points_csv`'s).
 
 Both give a :class:`~pincal.data.Dataset` whose ``labels`` index ``point_names`` (the point each
 row held the tip at); its ``points`` are zero. MUKCa's layout (Franzese, Spahn et al. 2025) is a
@@ -16,37 +17,9 @@ from pathlib import Path
 import numpy as np
 
 from . import files
-from .csv_table import read_columns
-from .data import Dataset, csv_columns, joint_values
+from .data import Dataset
 from .errors import DataError
 from .inputs import read_bytes
-
-
-def read_points_csv(
-    path: str | Path,
-    joint_names: Sequence[str],
-    degrees: bool = False,
-    units: str = "m",
-    prismatic: Sequence[bool] | None = None,
-) -> Dataset:
-    """Fixed-point data as a CSV (read once): a column per chain joint, as :func:`pincal.data.read_csv`
-    reads them, and a ``point`` column naming each row's point (names in order of first appearance).
-
-    Raises:
-        DataError: the file is missing or malformed, no ``point`` column, an empty point name.
-    """
-    if "point" not in csv_columns(path):
-        raise DataError(f"{path}: no 'point' column; fixed-point data names each row's point there")
-    what = f"every chain joint ({', '.join(joint_names)}) and point"
-    values, points = read_columns(path, joint_names, what, text_column="point")  # streamed (issue 33)
-    q = joint_values(values, degrees, units, prismatic)
-    names: dict[str, int] = {}
-    labels = np.empty(len(points), dtype=int)
-    for r, name in enumerate(points):
-        if not name:
-            raise DataError(f"{path}: data row {r + 1} has no point name in column 'point'")
-        labels[r] = names.setdefault(name, len(names))
-    return Dataset(tuple(joint_names), q, np.zeros((len(q), 3)), labels=labels, point_names=tuple(names))
 
 
 def socket_files(folder: Path) -> list[Path]:

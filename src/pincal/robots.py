@@ -24,15 +24,15 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 
-from .descriptions import URDF_SUFFIXES, borrow_inertias, check_urdf_text, robot_description
+from .descriptions import URDF_SUFFIXES, borrow_inertias, robot_description
+from .descriptions import read_urdf_text as read_urdf_text  # re-exported: a robot file is read there
 from .errors import RobotError
-from .inputs import read_bytes
 from .joint_kinds import actuated_joints, joint_path, mimic_joints, reference_configuration
 from .options import BUNDLED
 from .urdf_checks import check_urdf_structure
 
 if TYPE_CHECKING:
-    from .ur_yaml import URKinematics
+    from .ur_frames import URKinematics
 
 _FRAME_PREFERENCE = (pin.FrameType.BODY, pin.FrameType.FIXED_JOINT, pin.FrameType.OP_FRAME)
 
@@ -159,27 +159,6 @@ class Robot:
         lo, hi = np.where(wide, -math.pi, lo), np.where(wide, math.pi, hi)
         span = hi - lo
         return lo + span * (margin + (1 - 2 * margin) * rng.random((n, self.n_joints)))
-
-
-MAX_URDF_BYTES = 50_000_000  # [bytes] far above any robot description
-
-
-def read_urdf_text(path: Path) -> str:
-    """The text of a URDF, refused if it declares entities or an external DTD.
-
-    Kinematic calibration reads only the URDF itself: meshes (``package://`` or relative paths)
-    are never opened, and a DOCTYPE that could make an XML parser read a local file, the
-    network, or expand entities (``<!ENTITY``, ``SYSTEM``, ``PUBLIC``) is refused before any
-    parser sees the text.
-
-    Raises:
-        RobotError: unreadable file, not UTF-8, too large, or a DOCTYPE with declarations.
-    """
-    try:
-        text = read_bytes(path, "URDF", MAX_URDF_BYTES, error=RobotError).decode("utf-8")  # bounded
-    except UnicodeDecodeError as exc:
-        raise RobotError(f"cannot read URDF {path}: {exc}") from None
-    return check_urdf_text(text, path)
 
 
 def _deepest_body(model: pin.Model) -> str:

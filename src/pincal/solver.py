@@ -38,15 +38,15 @@ from .fixed_points import PointDistance, blind_jacobian, gauge_reasons, placed_d
 from .identifiability import RCOND, Identifiability, analyse, check_rank, parameter_scale
 from .kinematics import Chain, forward
 from .lm import levenberg_marquardt
+from .mdh import make_model
 from .measurements import ROTATION_WEIGHT, Measurement, Problem, gao_pairs
-from .models import Model, make_model
+from .models import Model
 from .outliers import find_outliers
 from .registration import initial_measurement
 from .robots import Robot
 
 #: Keyword arguments of :func:`calibrate` that describe the measurement set-up (see :func:`set_up`).
 SETUP_KEYS = ("instrument_T_base", "tool", "rotation_weight", "pairs", "point_distances")
-
 
 #: Weight of the rows that hold each geometric correction near the URDF, per natural unit (metres,
 #: or the rotation that moves the workspace by 1 m): 0.1 m of correction weighs as one residual of

@@ -64,6 +64,22 @@ def robot_options(args: argparse.Namespace) -> dict[str, Any]:
     }
 
 
+def locked_robot(args: argparse.Namespace) -> Robot:
+    """The ``--robot`` chain to ``--tip``, without the ``--lock`` joints (held at neutral).
+
+    Raises:
+        DataError: a locked joint not in the chain, or every joint locked.
+    """
+    chain = load_robot(args.robot, tip=args.tip, **robot_options(args))
+    check_lock(chain, args.lock)
+    if not args.lock:
+        return chain
+    if len(args.lock) == chain.n_joints:
+        raise DataError("--lock names every joint of the chain: nothing would move")
+    joints = [j for j in chain.joint_names if j not in args.lock]
+    return load_robot(args.robot, tip=args.tip, joints=joints, **robot_options(args))
+
+
 def chain(args: argparse.Namespace) -> Robot:
     """The chain; every chain joint needs a column in the data unless ``--lock`` holds it."""
     chain = load_robot(args.robot, tip=args.tip, **robot_options(args))

@@ -53,22 +53,3 @@ def check_lock(chain: Robot, lock: tuple[str, ...]) -> None:
             f"--lock {','.join(unknown)}: not joints between the base and {chain.tip} "
             f"({', '.join(chain.joint_names)})"
         )
-
-
-def locked_robot(args: argparse.Namespace) -> Robot:
-    """The ``--robot`` chain to ``--tip``, without the ``--lock`` joints (held at neutral).
-
-    Raises:
-        DataError: a locked joint not in the chain, or every joint locked.
-    """
-    from ..robots import load_robot  # here: --help loads no NumPy
-    from .common import robot_options
-
-    chain = load_robot(args.robot, tip=args.tip, **robot_options(args))
-    check_lock(chain, args.lock)
-    if not args.lock:
-        return chain
-    if len(args.lock) == chain.n_joints:
-        raise DataError("--lock names every joint of the chain: nothing would move")
-    joints = [j for j in chain.joint_names if j not in args.lock]
-    return load_robot(args.robot, tip=args.tip, joints=joints, **robot_options(args))

@@ -11,8 +11,7 @@ from ..errors import DataError, ImplausibleError
 from ..json_text import json_text
 from ..tool import calibrate_tool, read_flange_poses
 from ..tool_plausibility import judge_tool
-from .common import check_outputs, urdf_path, warn
-from .data_options import locked_robot
+from .common import check_outputs, locked_robot, urdf_path, warn
 
 
 def run(args: argparse.Namespace) -> int:
