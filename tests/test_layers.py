@@ -23,10 +23,6 @@ grimp = pytest.importorskip("grimp")
 ROOT = Path(__file__).resolve().parents[1]
 #: The imports, under ``if TYPE_CHECKING:`` only, that point up a layer (see the module's docstring).
 TYPE_ONLY = (
-    ("pincal.calibration", "pincal.balance"),
-    ("pincal.calibration", "pincal.choice"),
-    ("pincal.calibration", "pincal.guard"),
-    ("pincal.calibration", "pincal.prior"),
     ("pincal.chunked", "pincal.measurements"),
     ("pincal.chunked", "pincal.solver"),
     ("pincal.fixed_points", "pincal.measurements"),

@@ -24,12 +24,13 @@ a held compliance double-counts what the geometry took of it, and λ = ∞ is ch
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 
 from .folds import held_out_rows
 from .measurements import Problem
+from .records import Balance
 from .solver import Setup, solve
 
 #: The weights λ tried, smallest first; ``inf`` is the geometry first. Below 1 the linearised
@@ -38,32 +39,6 @@ from .solver import Setup, solve
 WEIGHTS = (1.0, 3.0, 10.0, 30.0, np.inf)
 #: λ standing for infinity in the linear algebra (the alone rows dominate the geometry).
 LARGE = 1e8
-
-
-@dataclass(frozen=True)
-class Balance:
-    """The weight chosen and what each weight's cross-validation gave.
-
-    Attributes:
-        weight: λ (``inf``: geometry first).
-        alone_cv_rms_mm: per λ, the URDF alone's linearised cross-validated RMS [mm].
-        full_cv_rms_mm: per λ, the model with its sidecar's [mm].
-    """
-
-    weight: float
-    alone_cv_rms_mm: tuple[float, ...]
-    full_cv_rms_mm: tuple[float, ...]
-
-    def to_dict(self) -> dict[str, object]:
-        """JSON-ready (``inf`` written as None)."""
-        return {
-            "weight": None if np.isinf(self.weight) else self.weight,
-            "weights": [None if np.isinf(w) else w for w in WEIGHTS],
-            "alone_cv_rms_mm": list(self.alone_cv_rms_mm),
-            "full_cv_rms_mm": list(self.full_cv_rms_mm),
-            "by": "K-fold cross-validation, linearised at the joint fit: of the weights whose URDF alone is "
-            "no worse than the geometry alone, the one whose URDF with its sidecar is best",
-        }
 
 
 class Stacked:
@@ -179,7 +154,7 @@ def choose_weight(setup: Setup, theta: np.ndarray, free: np.ndarray, folds: int,
     reference = alone_mm[-1]
     allowed = [k for k, alone in enumerate(alone_mm) if alone <= reference * (1 + 1e-9)]  # ∞ always is
     weight = WEIGHTS[min(allowed, key=lambda k: full_mm[k])]
-    return Balance(weight, tuple(alone_mm), tuple(full_mm))
+    return Balance(weight, WEIGHTS, tuple(alone_mm), tuple(full_mm))
 
 
 def balanced_fit(setup: Setup, theta: np.ndarray, free: np.ndarray, weight: float) -> np.ndarray:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
@@ -15,13 +14,8 @@ from .identifiability import Identifiability
 from .kinematics import Chain, forward
 from .measurements import Measurement, Problem, unpack
 from .models import Model
+from .records import Balance, Choice, Guard, PriorChoice
 from .robots import Robot
-
-if TYPE_CHECKING:
-    from .balance import Balance
-    from .choice import ModelChoice
-    from .guard import Guard
-    from .prior import PriorChoice
 
 
 @dataclass(frozen=True, eq=False)
@@ -77,7 +71,7 @@ class Calibration:
     n_evaluations: int
     message: str
     excluded: tuple[tuple[int, float], ...] = ()
-    choice: ModelChoice | None = None
+    choice: Choice | None = None
     balance: Balance | None = None
     prior: PriorChoice | None = None
     guard: Guard | None = None

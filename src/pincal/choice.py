@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from .calibration import Calibration
 from .diagnosis import Diagnosis, diagnose_with
 from .effects import Extension, Payload
 from .errors import IdentifiabilityError
@@ -144,6 +145,15 @@ class ModelChoice:
             "nested_note": self.nested_note,
             "diagnosis_skipped": self.skipped,
         }
+
+
+def choice_of(cal: Calibration) -> ModelChoice | None:
+    """The choice a calibration records, with its type (:mod:`pincal.records` says why the
+    calibration types it by a protocol)."""
+    choice = cal.choice
+    if choice is not None and not isinstance(choice, ModelChoice):
+        raise TypeError(f"a calibration's choice is a ModelChoice, not {type(choice).__name__}")
+    return choice
 
 
 def nested_policy(choice: ModelChoice, n_poses: int) -> str | None:

@@ -18,7 +18,6 @@ and says so; ``force_fit=True`` (``--force-fit``) exports the fit anyway.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Any
 
 import numpy as np
 from scipy.optimize import OptimizeResult
@@ -28,68 +27,12 @@ from .data import Dataset
 from .folds import held_out_rows
 from .identifiability import Identifiability
 from .measurements import Problem
-from .prior import PriorChoice, choose_weight, pulled
+from .prior import choose_weight, pulled
+from .records import Guard, PriorChoice
 from .solver import Setup, assess, solve
 
 #: The fit is kept when its validation gain over the nominal model is this many standard errors.
 Z_MIN = 2.0
-
-
-@dataclass(frozen=True)
-class Guard:
-    """The guard's judgement of a fit against the nominal model, on the fitted poses.
-
-    Attributes:
-        fit_cv_rms_mm: the fit's leave-one-pose-out RMS over poses of the error norm [mm]
-            (all the pose's residual rows: positions, weighted rotations, its pairs' distances).
-        nominal_cv_rms_mm: the nominal model's (registration, tool, points fitted) [mm].
-        z: mean gain in squared validation error over its standard error (large: reliable).
-        kept_fit: the fit is exported (reliably better, or forced).
-        forced: ``force_fit`` was asked for.
-    """
-
-    fit_cv_rms_mm: float
-    nominal_cv_rms_mm: float
-    z: float
-    kept_fit: bool
-    forced: bool = False
-
-    @property
-    def reliable(self) -> bool:
-        """The fit's validation error is reliably below the nominal's."""
-        return self.z > Z_MIN
-
-    def text(self) -> str:
-        """The verdict's line."""
-        said = (
-            f"validation (leave-one-pose-out) RMS {self.fit_cv_rms_mm:.3f} mm calibrated, "
-            f"{self.nominal_cv_rms_mm:.3f} mm nominal (gain {self.z:.1f} standard errors)"
-        )
-        if self.reliable:
-            return f"guard: the fit is reliably better than the nominal model: {said}"
-        if self.forced:
-            return (
-                f"guard: the data do not support a calibration better than the nominal model ({said}); "
-                "the fit is exported anyway (--force-fit)"
-            )
-        return (
-            f"guard: the data do not support a calibration better than the nominal model ({said}): "
-            "the nominal geometry is exported, with only the registration and tool fitted "
-            "(--force-fit exports the fit)"
-        )
-
-    def to_dict(self) -> dict[str, Any]:
-        """The report's ``guard`` object."""
-        return {
-            "fit_cv_rms_mm": self.fit_cv_rms_mm,
-            "nominal_cv_rms_mm": self.nominal_cv_rms_mm,
-            "z": self.z,
-            "z_min": Z_MIN,
-            "reliable": self.reliable,
-            "exported": "fit" if self.kept_fit else "nominal",
-            "forced": self.forced,
-            "by": "linearised leave-one-pose-out cross-validation on the fitted poses",
-        }
 
 
 def loo_squared_errors(setup: Setup, theta: np.ndarray, free: np.ndarray) -> np.ndarray:
@@ -130,7 +73,7 @@ def judge(
     stderr = float(np.std(gain, ddof=1) / np.sqrt(len(gain))) if len(gain) > 1 else 0.0
     z = float(np.mean(gain) / stderr) if stderr > 0 else 0.0  # no spread: nothing but the registration moved
     reliable = z > Z_MIN
-    return Guard(_rms_mm(fit), _rms_mm(base), z, reliable or forced, forced)
+    return Guard(_rms_mm(fit), _rms_mm(base), z, Z_MIN, reliable or forced, forced)
 
 
 #: Above this many poses (position or pose data), the guard judges a random subset of them

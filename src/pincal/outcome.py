@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from .calibration import Calibration
+from .choice import choice_of
 from .data import Dataset
 from .delivery import Exported, exported_errors
 from .evaluation import ErrorStats
@@ -88,6 +89,7 @@ def outcome(
     exported = exported_errors(cal, data, test)
     verdict = residual_verdict(cal, data, noise_mm, folds, seed)
     cause = cal.extension.label if cal.extension is not None else None
-    diagnosis = cal.choice.diagnosis if cal.choice is not None else None
+    choice = choice_of(cal)
+    diagnosis = choice.diagnosis if choice is not None else None
     joint = diagnosis.extended_cv_rms_mm if diagnosis is not None and diagnosis.cause is not None else None
     return Outcome(exported, verdict, cause, joint if cal.balance is not None else None)

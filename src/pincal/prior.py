@@ -24,51 +24,19 @@ data lower it. No held-out data is used: the training rows alone decide.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
-from typing import Any
+from dataclasses import replace
 
 import numpy as np
 from scipy.optimize import OptimizeResult
 
 from .chunked import normal_terms
 from .errors import DataError
+from .records import PriorChoice
 from .solver import Setup, solve
 
 #: Weights tried [per natural unit]: 1e-3 to 10, four per decade (0.1 m of correction then
 #: weighs as a residual of 0.1 mm to 1 m).
 WEIGHTS = tuple(float(w) for w in np.geomspace(1e-3, 10.0, 17))
-
-
-@dataclass(frozen=True)
-class PriorChoice:
-    """The strength of the pull toward the URDF and how it was chosen.
-
-    Attributes:
-        weight: the weight of the rows ``w · δ`` [per natural unit: 1/m of correction, or per
-            rotation moving the workspace by 1 m].
-        chosen_by: ``evidence`` (type-II maximum likelihood over :data:`WEIGHTS`), ``given``,
-            or why the default was kept (nothing geometric fitted, a robust loss).
-        log_evidence: (weight, log evidence) of each weight tried (empty when given).
-    """
-
-    weight: float
-    chosen_by: str
-    log_evidence: tuple[tuple[float, float], ...] = ()
-
-    def to_dict(self) -> dict[str, Any]:
-        """The report's ``prior`` object."""
-        return {
-            "weight": self.weight,
-            "chosen_by": self.chosen_by,
-            "means": "weight of the rows holding each geometric correction near the URDF, per "
-            "natural unit (0.1 m of correction weighs as a residual of 0.1 m x weight)",
-            "log_evidence": [{"weight": w, "log_evidence": e} for w, e in self.log_evidence],
-        }
-
-    def text(self) -> str:
-        """One line for the summary."""
-        how = "maximum evidence over the fitted poses" if self.chosen_by == "evidence" else self.chosen_by
-        return f"pull toward the URDF: weight {self.weight:.3g} per natural unit ({how})"
 
 
 def parse_prior(prior: float | str) -> float | None:

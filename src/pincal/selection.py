@@ -8,6 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from .choice import choice_of
 from .crossval import cross_validate
 from .data import Dataset
 from .evaluation import ErrorStats
@@ -61,7 +62,6 @@ def cross_validate_selection(
         **options: passed to :func:`pincal.calibrate` (each fold takes ``partial=True``).
     """
     cv = cross_validate(robot, data, model, measure, folds, seed, **{**options, "params": "auto"})
-    chosen = tuple(
-        c.choice.selection.chosen if c.choice and c.choice.selection else () for c in cv.calibrations
-    )
+    choices = [choice_of(c) for c in cv.calibrations]
+    chosen = tuple(c.selection.chosen if c is not None and c.selection else () for c in choices)
     return SelectionCrossValidation(folds, cv.before, cv.after, chosen)

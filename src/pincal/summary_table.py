@@ -5,6 +5,7 @@ after, identifiability, outliers, each placement of a fixture, what was chosen, 
 from __future__ import annotations
 
 from .calibration import Calibration
+from .choice import choice_of
 from .data import Dataset
 from .evaluation import ErrorStats, point_spread
 from .outcome import Outcome
@@ -44,7 +45,7 @@ def _row(label: str, *stats: ErrorStats | None) -> str:
 
 def choice_lines(cal: Calibration, data: Dataset | None = None) -> list[str]:
     """What was chosen and why, a line or a few."""
-    choice, lines = cal.choice, list[str]()
+    choice, lines = choice_of(cal), list[str]()
     if choice is None:
         return lines
     sel = choice.selection

@@ -6,6 +6,7 @@ import argparse
 
 import numpy as np
 
+from ..choice import choice_of
 from ..data import atomic_write
 from ..errors import DataError, IdentifiabilityError
 from ..json_text import json_text
@@ -57,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"outliers left out (residual far outside the others'): {named}")
         rows = [row for row, _ in cal.excluded]
         data = data.subset(np.flatnonzero(~np.isin(data.row_numbers, rows)))
-    choice = cal.choice
+    choice = choice_of(cal)
     result = choice.diagnosis if choice is not None else None
     if result is None:
         raise IdentifiabilityError(f"the diagnosis did not run: {choice.skipped if choice else 'no choice'}")
