@@ -622,7 +622,24 @@ def run_case(case: Case, robots: dict[str, Robot], sigma_mm: float, workdir: Pat
     )
     truth = Truth.draw(robot, rng)
     q_cmd = robot.sample(rng, case.n_poses)
-    q_reached = q_cmd + truth.offsets
+    result, points, clean = simulate_effect(case, robot, truth, q_cmd + truth.offsets, rng, sigma_mm)
+    return run_and_collect(result, robot, q_cmd, points, clean, sigma_mm, workdir)
+
+
+def simulate_effect(
+    case: Case,
+    robot: Robot,
+    truth: Truth,
+    q_reached: np.ndarray,
+    rng: np.random.Generator,
+    sigma_mm: float,
+) -> tuple[Result, np.ndarray, np.ndarray]:
+    """Add the case's effect to a truth's measured points at the joint angles it reaches without the
+    effect, ``q_reached`` (N, n, rad), and the noise (``sigma_mm`` per axis): the result to fill, with
+    the effect's size and references [mm], the measured points and the noise-free ones (N, 3, m).
+
+    ``truth`` is a :class:`Truth`, or a subclass with forward kinematics of its own.
+    """
     target_m = case.multiple * np.sqrt(3.0) * sigma_mm * 1e-3
     effect, errors = make_effect(case.effect, robot, truth, q_reached, target_m, rng)
     points = truth.points(q_reached + errors)
@@ -642,6 +659,22 @@ def run_case(case: Case, robots: dict[str, Robot], sigma_mm: float, workdir: Pat
         ref.listed_rest * 1e3,
         ref.listed_best,
     )
+    return result, points, clean
+
+
+def run_and_collect(
+    result: Result,
+    robot: Robot,
+    q_cmd: np.ndarray,
+    points: np.ndarray,
+    clean: np.ndarray,
+    sigma_mm: float,
+    workdir: Path,
+) -> Result:
+    """Write the measured points (N, 3, m) and the noise-free ones at commands ``q_cmd`` (rad), run
+    calibrate (the noise-free poses as ``--test``, only scored) and diagnose with ``--noise sigma_mm``,
+    and fill ``result`` with what they said."""
+    case = result.case
     stem = f"{case.robot}_{case.effect}_M{case.multiple:g}_N{case.n_poses}_s{case.seed}"
     data = workdir / f"{stem}.csv"
     write_csv(data, robot.joints, q_cmd, points)
@@ -832,9 +865,17 @@ def build_cases(
     return cases
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Run the audit; exit status 1 when an acceptance criterion fails."""
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+Runner = Callable[[Case, dict[str, Robot], float, Path], Result]
+
+
+def parse_args(argv: list[str] | None, doc: str | None) -> argparse.Namespace:
+    """The audit's options (``--quick`` applied; ``--sigma`` in mm per axis); sets the pincal command.
+
+    Args:
+        argv: the command line (default ``sys.argv[1:]``).
+        doc: the module docstring whose first paragraph is the ``--help`` description.
+    """
+    parser = argparse.ArgumentParser(description=(doc or "").split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="ur5, N=60, M in {3, 10}, one seed")
     parser.add_argument("--robots", nargs="+", choices=sorted(SPECS), default=["ur5", "panda"])
     parser.add_argument("--poses", nargs="+", type=int, default=[60, 100])
@@ -855,7 +896,25 @@ def main(argv: list[str] | None = None) -> int:
     PINCAL[:] = shlex.split(args.pincal)
     if args.quick:
         args.robots, args.poses, args.multiples, args.seeds = ["ur5"], [60], [3.0, 10.0], 1
-    robots = {name: Robot.load(SPECS[name]) for name in args.robots}
+    return args
+
+
+def main(
+    argv: list[str] | None = None,
+    run: Runner = run_case,
+    load: Callable[[RobotSpec], Robot] = Robot.load,
+    doc: str | None = __doc__,
+) -> int:
+    """Run the audit; exit status 1 when an acceptance criterion fails.
+
+    Args:
+        argv: the command line (default ``sys.argv[1:]``).
+        run: simulates and runs one case (``sigma`` in mm per axis, files written in the folder).
+        load: the robot of a spec, as ``run`` takes it.
+        doc: the module docstring whose first paragraph is the ``--help`` description.
+    """
+    args = parse_args(argv, doc)
+    robots = {name: load(SPECS[name]) for name in args.robots}
     cases = [
         c
         for c in build_cases(args.robots, args.poses, args.multiples, args.seeds, args.first_seed)
@@ -871,7 +930,7 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory(prefix="verdict_audit_") as tmp:
         workdir = args.keep or Path(tmp)
         workdir.mkdir(parents=True, exist_ok=True)
-        job: Callable[[Case], Result] = lambda c: run_case(c, robots, args.sigma, workdir)  # noqa: E731
+        job: Callable[[Case], Result] = lambda c: run(c, robots, args.sigma, workdir)  # noqa: E731
         results: list[Result] = []
         with ThreadPoolExecutor(max_workers=max(1, args.jobs)) as pool:
             for i, r in enumerate(pool.map(job, cases), 1):
