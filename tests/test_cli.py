@@ -136,7 +136,7 @@ def _assert_calibrated(report: dict) -> None:
     assert test["after"]["rms_mm"] < test["before"]["rms_mm"] / 10
 
 
-def _names(report: dict) -> list[str]:
+def listed_names(report: dict) -> list[str]:
     return [row["name"] for row in report["parameters"]]
 
 
@@ -205,7 +205,7 @@ def test_calibrate_with_test_file(
     n_test = N_TEST * (N_TEST - 1) // 2 if measure == "distance" else N_TEST
     assert report["test"]["after"]["n"] == n_test
     if measure == "distance":  # distances need no instrument registration
-        assert not any(name.startswith("instrument.") for name in _names(report))
+        assert not any(name.startswith("instrument.") for name in listed_names(report))
     _assert_calibrated(report)
 
 
@@ -254,8 +254,8 @@ def test_calibrate_instrument_frame_base(
         "base",
     )
     _check_contract(report)
-    assert not any(name.startswith("instrument.") for name in _names(report))
-    assert any(name.startswith("tool.") for name in _names(report))
+    assert not any(name.startswith("instrument.") for name in listed_names(report))
+    assert any(name.startswith("tool.") for name in listed_names(report))
     _assert_calibrated(report)
 
 
@@ -286,8 +286,8 @@ def test_calibrate_tool_point(
         point,
     )
     _check_contract(report)
-    assert not any(name.startswith("tool.") for name in _names(report))
-    assert any(name.startswith("instrument.") for name in _names(report))
+    assert not any(name.startswith("tool.") for name in listed_names(report))
+    assert any(name.startswith("instrument.") for name in listed_names(report))
     _assert_calibrated(report)
 
 
@@ -329,7 +329,7 @@ def test_calibrate_locks_joint_without_column(
     assert "wrist_3_joint" in run.out  # says which joint it locked
     report = json.loads((tmp_path / "r.json").read_text(encoding="utf-8"))
     _check_contract(report)
-    assert not any(name.startswith("wrist_3_joint.") for name in _names(report))
+    assert not any(name.startswith("wrist_3_joint.") for name in listed_names(report))
     _assert_calibrated(report)
 
 

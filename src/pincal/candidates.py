@@ -232,7 +232,7 @@ def check_sockets(truth: TrueRobot, sockets: np.ndarray, rng: np.random.Generato
         DataError: one line naming the sockets out of reach, their distance from the first
             joint's origin and the arm's reach.
     """
-    from .simulation import _reach  # the simulator's reaching, without its many restarts
+    from .simulation import reach  # the simulator's reaching, without its many restarts
 
     sockets = np.atleast_2d(np.asarray(sockets, float))
     origin, bound = arm_reach(truth.robot, truth.tool.translation)
@@ -242,7 +242,7 @@ def check_sockets(truth: TrueRobot, sockets: np.ndarray, rng: np.random.Generato
     if inside.size:
         targets = np.repeat(sockets[inside], REACH_STARTS, axis=0)
         starts = truth.robot.random_configurations(len(targets), rng, margin)
-        _, reached = _reach(truth, targets, starts, 1e-6)
+        _, reached = reach(truth, targets, starts, 1e-6)
         out[inside] = ~reached.reshape(len(inside), REACH_STARTS).any(axis=1)
     if not out.any():
         return

@@ -90,7 +90,7 @@ def report_dict(
             out["exported"] = alone.to_dict()
         return out
 
-    ident, found = cal.identifiability, _findings(cal, data)
+    ident, found = cal.identifiability, findings(cal, data)
     extra: dict[str, Any] = {}
     if isinstance(cal.model, PoeModel):
         _, _, tool = cal.split()
@@ -156,7 +156,7 @@ def report_json(
 Findings = tuple[list[PlacementErrors], list[Misplaced]]
 
 
-def _findings(cal: Calibration, data: Dataset | None) -> Findings:
+def findings(cal: Calibration, data: Dataset | None) -> Findings:
     """Each placement's errors and the misplaced rows of the fitted ``data``, found once."""
     if data is None:
         return [], []
@@ -169,7 +169,7 @@ def _findings(cal: Calibration, data: Dataset | None) -> Findings:
 def placements(cal: Calibration, data: Dataset | None) -> list[PlacementErrors]:
     """Each placement's errors after calibration, for fixed-point data of several placements
     (``data``: the fitted data); else an empty list."""
-    return _findings(cal, data)[0]
+    return findings(cal, data)[0]
 
 
 #: A held-out error this many times the nominal kinematics' is "worse" (not a tie to rounding).
@@ -183,8 +183,8 @@ def report_warnings(
     than by the nominal kinematics, placements whose rows disagree with themselves, fixed-point
     rows (fitted ``data`` or held-out ``test``) that sit at another point than their own,
     held-out points that hold no known distance (its error is not judged);
-    ``found``: :func:`_findings` of ``data`` when already computed."""
-    each, misplaced = _findings(cal, data) if found is None else found
+    ``found``: :func:`findings` of ``data`` when already computed."""
+    each, misplaced = findings(cal, data) if found is None else found
     out = []
     if cal.test_after is not None and cal.test_before is not None:
         after, before = cal.test_after.headline_mm, cal.test_before.headline_mm
@@ -226,7 +226,7 @@ def _misplaced(found: list[Misplaced], data: Dataset, which: str) -> list[str]:
     out = []
     for point, near in dict.fromkeys((m.point, m.near) for m in found):
         group = [m for m in found if (m.point, m.near) == (point, near)]
-        names = _names(tuple(data.row_name(m.row) for m in group), 6)
+        names = listed_names(tuple(data.row_name(m.row) for m in group), 6)
         off, at = (f"{min(v):.2f}-{max(v):.2f}" for v in zip(*((m.off_mm, m.at_mm) for m in group)))
         out.append(
             f"{len(group)} {which} rows filed under point {point} sit at point {near} ({at} mm from its "
@@ -236,5 +236,6 @@ def _misplaced(found: list[Misplaced], data: Dataset, which: str) -> list[str]:
     return out
 
 
-def _names(names: tuple[str, ...], most: int = 10) -> str:
+def listed_names(names: tuple[str, ...], most: int = 10) -> str:
+    """The first ``most`` names, comma-separated, and how many more."""
     return ", ".join(names[:most]) + (f" and {len(names) - most} more" if len(names) > most else "")

@@ -237,7 +237,7 @@ def simulate_points(
     q = np.empty((n_rows, truth.robot.n_joints))
     todo = np.arange(n_rows)
     for _ in range(20):
-        found, ok = _reach(
+        found, ok = reach(
             truth, targets[todo], truth.robot.random_configurations(len(todo), rng, margin), tol
         )
         q[todo[ok]] = found[ok]
@@ -263,7 +263,7 @@ def ball_positions(truth: TrueRobot, q: np.ndarray) -> tuple[np.ndarray, np.ndar
     return frames.tip_translation + arm, frames.tip_rotation, jac[:, :3] - skew(arm) @ jac[:, 3:]
 
 
-def _reach(
+def reach(
     truth: TrueRobot, targets: np.ndarray, q: np.ndarray, tol: float, damping: float = 1e-4
 ) -> tuple[np.ndarray, np.ndarray]:
     """Damped least squares from ``q`` (N, n), projected on the joint limits after each step (at

@@ -9,7 +9,7 @@ from .choice import choice_of
 from .data import Dataset
 from .evaluation import ErrorStats, point_spread
 from .outcome import Outcome
-from .report import _findings, _names, extension_dict, report_warnings
+from .report import extension_dict, findings, listed_names, report_warnings
 
 #: Fixed points within this distance of each other are one placement of a fixture [m].
 SMALL = 0.2
@@ -62,8 +62,8 @@ def choice_lines(cal: Calibration, data: Dataset | None = None) -> list[str]:
                 f"parameters: {len(choice.params)} of {n_all} {sel.model} parameters chosen {how}: "
                 f"CV RMS {sel.cv_rms_mm:.3f} mm (all {n_all}: {sel.all_cv_rms_mm:.3f} mm)"
             )
-            lines.append(f"  kept: {_names(choice.params)}")
-            lines.append(f"  left out (stay nominal): {_names(choice.left_out)}")
+            lines.append(f"  kept: {listed_names(choice.params)}")
+            lines.append(f"  left out (stay nominal): {listed_names(choice.left_out)}")
     if choice.extension_mode == "auto":
         diag = choice.diagnosis
         if choice.extension is None or diag is None:
@@ -155,7 +155,7 @@ def summary(
         name = data.row_name if data is not None else (lambda row: f"row {row}")
         rows = ", ".join(f"{name(row)} ({size:.3f} mm)" for row, size in cal.excluded)
         lines.append(f"outliers left out of the fit (residual far outside the others'): {rows}")
-    found = _findings(cal, data)
+    found = findings(cal, data)
     each = found[0]
     if each:
         lines.append(f"per placement, after [mm], {stat}:")

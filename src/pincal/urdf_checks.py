@@ -58,7 +58,7 @@ def check_urdf_structure(text: str, path: str | Path) -> None:
     ns = _namespace(root.tag)
     if root.tag != f"{ns}robot":
         raise RobotError(f"URDF {path}: the root element is <{_local(root.tag)}>, not <robot>: is it a URDF?")
-    links = _names(root.findall(f"{ns}link"), "link", path)
+    links = listed_names(root.findall(f"{ns}link"), "link", path)
     known = set(links)
     joints = root.findall(f"{ns}joint")
     if not links:
@@ -69,7 +69,7 @@ def check_urdf_structure(text: str, path: str | Path) -> None:
             f"URDF {path} has {len(joints)} joints, {moving} of them movable: more than {MAX_JOINTS} "
             f"movable, {MAX_ALL_JOINTS} in all, or {MAX_JOINTS} and none movable: is it a robot arm's URDF?"
         )
-    _names(joints, "joint", path)
+    listed_names(joints, "joint", path)
     parent_of: dict[str, tuple[str, str, bool]] = {}  # child link -> (joint, parent link, movable)
     for joint in joints:
         name, kind = joint.get("name", ""), joint.get("type", "")
@@ -240,7 +240,7 @@ def _metres(values: list[float] | None, what: str, path: str | Path) -> None:
         )
 
 
-def _names(elements: list[ET.Element], what: str, path: str | Path) -> list[str]:
+def listed_names(elements: list[ET.Element], what: str, path: str | Path) -> list[str]:
     """The names of links or joints, refused when missing or repeated."""
     names: list[str] = []
     seen: set[str] = set()
