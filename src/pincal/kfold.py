@@ -87,6 +87,8 @@ def cross_validate_with(
     measure: str | None = None,
     folds: int = 7,
     seed: int = 0,
+    *,
+    progress: Callable[[int, int, str], None] | None = None,
     **options: Any,
 ) -> CrossValidation:
     """Calibrate with ``fit`` on K-1 folds, judge on the held-out fold, pool the held-out errors.
@@ -99,6 +101,7 @@ def cross_validate_with(
         measure: the measurement (default as :func:`pincal.calibrate`).
         folds: number of folds (``len(data)`` for leave-one-out).
         seed: seed of the partition.
+        progress: called as ``progress(done, folds, label)`` after each fold.
         **options: passed to ``fit``; each fold fits what its poses identify
             (``partial=True``: a fold may lack the variety of the whole).
     """
@@ -106,7 +109,7 @@ def cross_validate_with(
         raise DataError(f"cross-validation needs between 2 and {len(data)} folds (one per pose), got {folds}")
     pooled: list[list[np.ndarray]] = [[], [], []]
     cals = []
-    for held in fold_indices(len(data), folds, seed):
+    for k, held in enumerate(fold_indices(len(data), folds, seed)):
         kept = np.setdiff1d(np.arange(len(data)), held)
         try:
             cal = fit(robot, data.subset(kept), model, measure, **{**options, "partial": True})
@@ -123,5 +126,7 @@ def cross_validate_with(
         cals.append(cal)
         for store, errs in zip(pooled, held_out_errors(cal, data, held)):
             store.append(errs)
+        if progress is not None:
+            progress(k + 1, folds, f"cross-validation, fold {k + 1} of {folds}")
     urdf, before, after = (ErrorStats.of(np.concatenate(p)) for p in pooled)
     return CrossValidation(folds, urdf, before, after, tuple(cals))

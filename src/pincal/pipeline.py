@@ -181,7 +181,7 @@ def calibrate(
         rest = dict(test=test, folds=folds, seed=seed, nested=nested, progress=progress)
         return _without(robot, data, model, measure, bad, scores, {**call, **rest})
     if nested is not False:
-        judge = _judge(robot, data, model, measure, folds, seed, {**call, "outliers": outliers})
+        judge = _judge(robot, data, model, measure, (folds, seed, progress), {**call, "outliers": outliers})
         choice = choice.with_nested(judge, nested is True, len(data))
     return _delivered(found, setup, choice, deliver, wanted, test, options, fit_options)
 
@@ -322,13 +322,16 @@ def _judge(
     data: Dataset,
     model: str | Model,
     measure: str | None,
-    folds: int,
-    seed: int,
+    folding: tuple[int, int, Callable[[int, int, str], None] | None],
     options: dict[str, Any],
 ) -> Callable[[], Any]:
-    """The nested cross-validation of the whole call: ``calibrate(**options)`` without each fold."""
+    """The nested cross-validation of the whole call: ``calibrate(**options)`` without each fold
+    (``folding``: K, the seed, and the progress callback told of each fold)."""
+    folds, seed, progress = folding
     call = {**options, "pairs": options["pairs"] if isinstance(options["pairs"], str) else "all"}
-    return lambda: cross_validate_with(calibrate, robot, data, model, measure, folds, seed, **call)
+    return lambda: cross_validate_with(
+        calibrate, robot, data, model, measure, folds, seed, progress=progress, **call
+    )
 
 
 def _checked(

@@ -125,7 +125,7 @@ def run(args: argparse.Namespace) -> int:
     if args.holdout is not None:
         data, test = data.split(args.holdout, args.seed)
     args.extend = default_extension(args.extend, args.measure, data)
-    progress = progress_line("diagnosis") if args.extend == "auto" else None
+    progress = progress_line("calibration")  # the diagnosis, then the nested cross-validation
     cal = _fit(args, robot, data, test, progress)
     end_progress(progress)
     verdict = plausible(cal, data, args)
