@@ -53,6 +53,7 @@ from typing import Any  # noqa: E402
 import numpy as np  # noqa: E402
 
 import pincal  # noqa: E402
+from pincal.choice import choice_of  # noqa: E402
 from pincal.simulation import hide_effect  # noqa: E402
 
 #: Part 1: fitted and held-out poses.
@@ -120,12 +121,13 @@ def false_alarms(robot_name: str, seeds: int) -> dict[str, Any]:
             row.update(error=f"{type(exc).__name__}: {exc}", cause=None, ok=False)
             rows.append(row)
             continue
-        assert cal.choice is not None  # params="auto" records its choice
-        ext = cal.choice.extension
+        choice = choice_of(cal)
+        assert choice is not None  # params="auto" records its choice
+        ext = choice.extension
         row["seconds"] = time.perf_counter() - start
         row["cause"] = None if ext is None else ext.label
-        row["keeps_all"] = cal.choice.params is None
-        row["rounds"] = len(cal.choice.rounds)
+        row["keeps_all"] = choice.params is None
+        row["rounds"] = len(choice.rounds)
         row["ok"] = ext is None
         rows.append(row)
     seconds = [r["seconds"] for r in rows if "seconds" in r]

@@ -58,6 +58,7 @@ from identification_scaling import FIGURE, TIAGO_TIP, load_tiago, plot, scaling 
 from markdown_page import command_line, table, text_block, write_page  # noqa: E402
 
 import pincal  # noqa: E402
+from pincal.choice import choice_of  # noqa: E402
 from pincal.data import Dataset, atomic_write, read_table, write_csv  # noqa: E402
 from pincal.outliers import THRESHOLD  # noqa: E402
 from pincal.registration import quaternions  # noqa: E402
@@ -243,9 +244,10 @@ def bench_cv(
         options = {"params": "auto", "outliers": THRESHOLD, "folds": folds, "extension": None, **options}
         cal, seconds = timed(repeat, pincal.calibrate, robot, data, mdl, measure, **options)
         judged = pincal.calibrate(robot, data, mdl, measure, **options, nested=True)
-        assert judged.choice is not None and judged.choice.nested is not None
+        choice = choice_of(judged)
+        assert choice is not None and choice.nested is not None
         flags = f"{base.replace(f'--model {model}', f'--model {mdl}')} --nested yes --folds {folds} {flags}"
-        held = judged.choice.nested.after
+        held = choice.nested.after
         rows.append(Row(name, label, cal.identifiability.n_identifiable, cal.train_after.rms_mm, held.rms_mm,
                         f"{by}, nested", anchor, seconds, flags.strip()))  # fmt: skip
         details[label] = {"held_out": held.to_dict(), "train": cal.train_after.to_dict()}
