@@ -46,7 +46,7 @@ def is_large(problem: Problem) -> bool:
     """Whether ``problem`` works block by block (see the module docstring)."""
     if not getattr(problem, "blockwise", True):  # a problem that says it is solved whole
         return False
-    return problem.measurement.kind in ("position", "pose") and len(problem.data) > LARGE_POSES
+    return problem.measurement.measure.registered and len(problem.data) > LARGE_POSES
 
 
 def blocks(problem: Problem) -> list[Problem]:

@@ -276,7 +276,7 @@ def blind_jacobian(
     and their names (:func:`gauge_directions`); other data: the Jacobian as it is, no gauges.
     Linearised, a gauge looks like a gain (shrinking everything shrinks every residual): the
     identifiable set and the parameter choice both need it gone."""
-    if problem.measurement.kind != "points":
+    if not problem.measurement.measure.fixed_points:
         return jacobian, np.empty((problem.n_params, 0)), ()
     gauges, names = gauge_directions(problem, theta, candidates, scale)
     return without_gauges(jacobian, gauges, scale), gauges, names

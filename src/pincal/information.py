@@ -28,6 +28,7 @@ from .data import Dataset
 from .effects import Extension
 from .fixed_points import PointDistance
 from .identifiability import analyse, parameter_scale
+from .kinds import get_kind
 from .kinematics import Chain, forward
 from .measurements import Measurement, Problem
 from .models import make_model
@@ -119,14 +120,16 @@ class Information:
 
     def measurement(self, tool: np.ndarray, kind: str | None = None) -> Measurement:
         """The fit's measurement model with the measured point ``tool`` (3,) [m]."""
-        kind = kind or ("position" if self.measure == "distance" else self.measure)
+        planned = get_kind(self.measure)
+        kind = kind or ("position" if planned.by_pairs else self.measure)
+        fixed_points = get_kind(kind).fixed_points
         return Measurement(
             kind,
-            fit_instrument=kind in ("position", "pose") and self.measure not in ("distance", "points"),
+            fit_instrument=get_kind(kind).registered and planned.registered,
             tool=pin.SE3(np.eye(3), tool),
             rotation_weight=self.weight,
-            points=self.point_names if kind == "points" else (),
-            point_distances=self.distances if kind == "points" else (),
+            points=self.point_names if fixed_points else (),
+            point_distances=self.distances if fixed_points else (),
         )
 
     def raw(
@@ -139,10 +142,10 @@ class Information:
         tips = frames.tip_translation + frames.tip_rotation @ tool
         meas = self.measurement(tool, kind)
         quats = None
-        if meas.kind == "pose":
+        if meas.measure.orientation:
             quats = np.array([pin.Quaternion(r).coeffs()[[3, 0, 1, 2]] for r in frames.tip_rotation])
-        labels = (self.labels if labels is None else labels) if meas.kind == "points" else None
-        names = self.point_names if meas.kind == "points" else ()
+        labels = (self.labels if labels is None else labels) if meas.measure.fixed_points else None
+        names = self.point_names if meas.measure.fixed_points else ()
         data = Dataset(self.robot.joint_names, q, tips, quats, labels=labels, point_names=names)
         problem = Problem(self.mdl, meas, data, self.extension)
         jac = problem.jacobian(problem.initial_theta())
