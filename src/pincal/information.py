@@ -73,11 +73,12 @@ class Information:
         distances: tuple[PointDistance, ...] = (),
     ) -> None:
         self.robot, self.measure, self.extension, self.noise = robot, measure, extension, noise
+        self.kind = get_kind(measure)
         self.mdl = make_model(model, robot)
         self.labels, self.distances, self.weight = labels, distances, weight
         n_points = 0 if labels is None else int(labels.max()) + 1
         self.point_names = tuple(str(k) for k in range(n_points))
-        self.sigma = np.array([noise] * 3 + [weight * rot_noise] * (3 if measure == "pose" else 0))
+        self.sigma = np.array([noise] * 3 + [weight * rot_noise] * (3 if self.kind.orientation else 0))
         raws = [self.raw(q, tool) for tool in tools]
         problem = raws[0][2]
         self.names, self.units, self.n_model = problem.names, problem.units, problem.n_model
@@ -120,12 +121,11 @@ class Information:
 
     def measurement(self, tool: np.ndarray, kind: str | None = None) -> Measurement:
         """The fit's measurement model with the measured point ``tool`` (3,) [m]."""
-        planned = get_kind(self.measure)
-        kind = kind or ("position" if planned.by_pairs else self.measure)
+        kind = kind or ("position" if self.kind.by_pairs else self.measure)
         fixed_points = get_kind(kind).fixed_points
         return Measurement(
             kind,
-            fit_instrument=get_kind(kind).registered and planned.registered,
+            fit_instrument=get_kind(kind).registered and self.kind.registered,
             tool=pin.SE3(np.eye(3), tool),
             rotation_weight=self.weight,
             points=self.point_names if fixed_points else (),
@@ -156,7 +156,7 @@ class Information:
 
     def for_analysis(self, rows: np.ndarray, points: np.ndarray) -> np.ndarray:
         """The rows stacked as the fit sees them (pairs of poses for distance data)."""
-        if self.measure != "distance":
+        if not self.kind.by_pairs:
             return rows.reshape(-1, rows.shape[2])
         i, j = np.triu_indices(len(points), 1)
         return pair_rows(rows[i], rows[j], points[i] - points[j])
@@ -164,7 +164,7 @@ class Information:
     def whiten(self, rows: np.ndarray) -> np.ndarray:
         """Rows on the identifiable unknowns, scaled, divided by their noise."""
         scaled = rows[:, :, self.free] * self.scale[self.free]
-        sigma = self.sigma if self.measure != "distance" else np.full(3, self.noise * np.sqrt(2))
+        sigma = self.sigma if not self.kind.by_pairs else np.full(3, self.noise * np.sqrt(2))
         return scaled / sigma[None, :, None]
 
     def prior(self, known: np.ndarray) -> np.ndarray:
@@ -175,7 +175,7 @@ class Information:
     def candidate_rows(self, h: int, index: np.ndarray, chosen: Sequence[int]) -> np.ndarray:
         """Rows (len(index), r, P) each candidate would add to the ``chosen`` poses (hypothesis h)."""
         g = self.rows[h]
-        if self.measure != "distance":
+        if not self.kind.by_pairs:
             return g[index]
         chosen_ = np.asarray(chosen, dtype=int)
         tips = self.tips[h]
@@ -186,13 +186,13 @@ class Information:
         so that ``tr(W cov)`` is the mean squared error of the predicted point (distance) [m²]."""
         out = []
         for tool in tools:
-            kind = "position" if self.measure in ("distance", "points") else None
+            kind = "position" if not self.kind.registered else None
             rows, tips, problem, _ = self.raw(q_task, tool, kind)
             jt = np.zeros((len(q_task), 3, len(self.names)))
             where = [self.names.index(n) for n in problem.names if n in self.names]
             jt[:, :, where] = rows[:, :3, [problem.names.index(self.names[k]) for k in where]]
             jt = jt[:, :, self.free] * self.scale[self.free]
-            if self.measure == "distance":
+            if self.kind.by_pairs:
                 i, j = np.triu_indices(len(q_task), 1)
                 jt = pair_rows(jt[i], jt[j], tips[i] - tips[j])[:, None]
             out.append(np.einsum("trp,trq->pq", jt, jt) / len(jt))

@@ -217,7 +217,7 @@ VERDICT_POSES = 1_500
 
 def _sampled(cal: Calibration, data: Dataset, seed: int) -> tuple[Dataset, str]:
     """``data``, or :data:`VERDICT_POSES` random poses of it when large, and what was done."""
-    if len(data) <= VERDICT_POSES or cal.measurement.kind not in ("position", "pose"):
+    if len(data) <= VERDICT_POSES or not cal.measurement.measure.registered:
         return data, ""
     keep = np.sort(np.random.default_rng(seed).choice(len(data), VERDICT_POSES, replace=False))
     return data.subset(keep), f"; on {VERDICT_POSES} random poses of the {len(data)}"

@@ -36,10 +36,9 @@ from .errors import DataError, IdentifiabilityError
 from .evaluation import evaluate
 from .fixed_points import PointDistance, blind_jacobian, gauge_reasons, placed_distances
 from .identifiability import RCOND, Identifiability, analyse, check_rank, parameter_scale
-from .kinds import get_kind
 from .kinematics import Chain, forward
 from .lm import levenberg_marquardt
-from .measurements import ROTATION_WEIGHT, Measurement, Problem, gao_pairs
+from .measurements import ROTATION_WEIGHT, Measurement, Problem, gao_pairs, get_kind
 from .models import Model, make_model
 from .outliers import find_outliers
 from .registration import initial_measurement
@@ -139,12 +138,11 @@ def set_up(
         else pin.SE3(np.eye(3), np.zeros(3) if tool is None else np.asarray(tool, float))
     )
     kind = measure or data.measured
-    fixed_points, by_pairs = get_kind(kind).fixed_points, get_kind(kind).by_pairs
-    if fixed_points and data.labels is None:
+    if get_kind(kind).fixed_points and data.labels is None:
         raise DataError("--measure points needs a point column naming the fixed point of each row")
-    if point_distances and not fixed_points:
+    if point_distances and not get_kind(kind).fixed_points:
         raise DataError(f"--point-distance is for --measure points (fixed-point data), not for {kind} data")
-    if not (isinstance(pairs, str) and pairs == "all") and not by_pairs:
+    if not (isinstance(pairs, str) and pairs == "all") and not get_kind(kind).by_pairs:
         named = pairs if isinstance(pairs, str) else "(an array)"
         raise DataError(f"--pairs {named} is for --measure distance, not for {kind} data")
     measurement = Measurement(
@@ -155,7 +153,7 @@ def set_up(
         fit_tool=tool is None,
         rotation_weight=rotation_weight,
         pairs=_pairs(pairs, len(data)),
-        points=data.point_names if fixed_points else (),
+        points=data.point_names if get_kind(kind).fixed_points else (),
         point_distances=placed_distances(data.point_names, tuple(point_distances)),
     )
     problem = Problem(mdl, initial_measurement(robot, data, measurement), data, extension)
