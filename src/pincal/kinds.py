@@ -46,6 +46,7 @@ class MeasurementKind:
         statistic: the statistics the summary shows.
         fitted: what "before" fits besides the nominal kinematics.
         data_word: what the nominal robot misses, in words ("data" or "distances").
+        misses: what misses when the fit is poor, in words.
         columns: the measured columns of a CSV of this kind (``pincal template``).
     """
 
@@ -61,6 +62,7 @@ class MeasurementKind:
     statistic: ClassVar[str] = "RMS / max"
     fitted: ClassVar[str] = "registration and tool"
     data_word: ClassVar[str] = "data"
+    misses: ClassVar[str] = "the calibrated robot misses the points"
     columns: ClassVar[tuple[str, ...]] = ("x", "y", "z")
 
     def __repr__(self) -> str:
@@ -158,6 +160,7 @@ class Distance(MeasurementKind):
     registered = False
     error = "abs. distance error over pairs"
     data_word = "distances"
+    misses = "the distances miss"
 
     def rows(
         self, problem: Problem, theta: np.ndarray, cols: np.ndarray | None
@@ -204,6 +207,7 @@ class Points(MeasurementKind):
     error = "fixed points"
     statistic = "mean from the point's mean / distance error"
     fitted = "tool and points"
+    misses = "the tip misses its fixed points"
     columns = ("point",)
 
     def rows(

@@ -169,13 +169,12 @@ def _fit_checks(cal: Calibration, problem: Problem, size: float, loss: str) -> I
         pos, _ = problem.predict(cal.theta)
         errors = np.linalg.norm(pos - data.points, axis=1)[~far]
         fit_mm = float(np.sqrt(np.mean(errors**2))) * 1e3
-    what = {"points": "the tip misses its fixed points", "distance": "the distances miss"}
     yield Check(
         "fit",
         fit_mm * 1e-3 / size,
         FIT,
         "ratio",
-        f"{what.get(cal.measurement.kind, 'the calibrated robot misses the points')} by "
+        f"{cal.measurement.measure.misses} by "
         f"{mm_text(fit_mm * 1e-3)} RMS, {share_text(fit_mm * 1e-3, size)}",
     )
     after = cal.train_after
