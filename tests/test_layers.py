@@ -1,15 +1,11 @@
 """No import circle among pincal's modules (issue 32): the layers point only down.
 
-The graph is grimp's, imports inside functions and under ``if TYPE_CHECKING:`` included. A cycle
-is a strongly connected component of more than one module. The layer order itself is the
-import-linter contract of pyproject.toml (``lint-imports``).
-
-Only the annotations of :data:`TYPE_ONLY` point up, each under ``if TYPE_CHECKING:`` and never run:
-a :class:`~pincal.calibration.Calibration` records what the pipeline chose (its choice, balance,
-prior, guard), whose records hold calibrations in turn (a diagnosis, a cross-validation); and
-:mod:`pincal.chunked` and :mod:`pincal.fixed_points` take the
-:class:`~pincal.measurements.Problem` whose methods call them. The contract ignores the same
-imports (``ignore_imports``); a new one is a failure here.
+The graph is grimp's, imports inside functions and under ``if TYPE_CHECKING:`` included: no
+annotation points up either (a calibration's records live in :mod:`pincal.records` below it;
+the kinds, the fixed points and the blocks of large data take a problem as the protocol of
+:mod:`pincal.rows`). A cycle is a strongly connected component of more than one module. The
+layer order itself is the import-linter contract of pyproject.toml (``lint-imports``), which
+ignores no import.
 """
 
 from __future__ import annotations
@@ -21,12 +17,6 @@ import pytest
 grimp = pytest.importorskip("grimp")
 
 ROOT = Path(__file__).resolve().parents[1]
-#: The imports, under ``if TYPE_CHECKING:`` only, that point up a layer (see the module's docstring).
-TYPE_ONLY = (
-    ("pincal.chunked", "pincal.measurements"),
-    ("pincal.chunked", "pincal.solver"),
-    ("pincal.fixed_points", "pincal.measurements"),
-)
 
 
 def cycles(graph: grimp.ImportGraph) -> list[list[str]]:
@@ -81,30 +71,19 @@ def _edges(graph: grimp.ImportGraph, component: list[str]) -> list[str]:
 
 
 def test_no_import_cycle() -> None:
-    """grimp's graph of pincal, function-level and type-checking imports included, has no cycle
-    once the annotations of :data:`TYPE_ONLY` are left out."""
+    """grimp's graph of pincal, function-level and type-checking imports included, has no cycle."""
     graph = grimp.build_graph("pincal", cache_dir=None)
-    for importer, imported in TYPE_ONLY:
-        graph.remove_import(importer=importer, imported=imported)
     found = cycles(graph)
     assert not found, "\n".join(
         f"cycle of {len(c)} modules:\n  " + "\n  ".join(_edges(graph, c)) for c in found
     )
 
 
-def test_upward_imports_are_type_only() -> None:
-    """Each import of :data:`TYPE_ONLY` is only an annotation's: no such import runs."""
-    graph = grimp.build_graph("pincal", exclude_type_checking_imports=True, cache_dir=None)
-    running = [edge for edge in TYPE_ONLY if graph.direct_import_exists(importer=edge[0], imported=edge[1])]
-    assert not running, running
-
-
-def test_the_contract_ignores_the_same_imports() -> None:
-    """pyproject.toml's import-linter contract leaves out exactly the imports of :data:`TYPE_ONLY`."""
+def test_the_contract_ignores_no_import() -> None:
+    """pyproject.toml's import-linter contract makes no exception."""
     tomllib = pytest.importorskip("tomllib")  # Python 3.11
     config = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["importlinter"]
-    ignored = {tuple(s.split(" -> ")) for c in config["contracts"] for s in c.get("ignore_imports", ())}
-    assert ignored == set(TYPE_ONLY)
+    assert not [s for c in config["contracts"] for s in c.get("ignore_imports", ())]
 
 
 def test_the_contract_passes() -> None:

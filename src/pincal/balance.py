@@ -144,7 +144,7 @@ def choose_weight(setup: Setup, theta: np.ndarray, free: np.ndarray, folds: int,
         test = np.zeros(len(problem.residuals(theta)), dtype=bool)
         test[rows] = True
         tests.append(test)
-    per = 1 if problem.measurement.kind == "distance" else 3
+    per = 1 if problem.measurement.measure.by_pairs else 3
     alone_mm, full_mm = [], []
     for weight in WEIGHTS:
         fit = Delivered(problem, theta, free, weight)

@@ -15,6 +15,7 @@ import numpy as np
 import pinocchio as pin
 
 from .errors import DataError
+from .kinds import get_kind
 from .kinematics import Chain, forward
 from .robots import Robot
 
@@ -274,8 +275,9 @@ def check_memory(robot: Robot, candidates: int, measure: str, n_poses: int) -> N
         DataError: the estimate is above half the memory available, with the largest count that fits.
     """
     params = 6 * (robot.n_joints + 1) + 9
-    rows = 6 if measure == "pose" else 3
-    per_candidate = 8 * params * (_ROW_COPIES * rows + (3 * n_poses if measure == "distance" else 0)) + 1024
+    kind = get_kind(measure)
+    rows = 6 if kind.orientation else 3
+    per_candidate = 8 * params * (_ROW_COPIES * rows + (3 * n_poses if kind.by_pairs else 0)) + 1024
     free = available_memory()
     if free is None or candidates * per_candidate <= free / 2:
         return

@@ -23,16 +23,26 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import replace
-from typing import TYPE_CHECKING
+from typing import Any, ClassVar, Protocol, TypeVar
 
 import numpy as np
 
+from .data import Dataset
 from .kinematics import Frames
+from .rows import ProblemRows
 
-if TYPE_CHECKING:
-    from .data import Dataset
-    from .measurements import Problem
-    from .solver import Setup
+
+class _Posed(Protocol):
+    """A set-up (:class:`pincal.solver.Setup`): a dataclass with a problem."""
+
+    __dataclass_fields__: ClassVar[dict[str, Any]]
+
+    @property
+    def problem(self) -> ProblemRows:
+        """Its problem."""
+
+
+_Setup = TypeVar("_Setup", bound=_Posed)
 
 #: Poses above which a problem works block by block.
 LARGE_POSES = 50_000
@@ -42,34 +52,36 @@ BLOCK_POSES = 20_000
 SAMPLE_POSES = 50_000
 
 
-def is_large(problem: Problem) -> bool:
+def is_large(problem: ProblemRows) -> bool:
     """Whether ``problem`` works block by block (see the module docstring)."""
     if not getattr(problem, "blockwise", True):  # a problem that says it is solved whole
         return False
-    return problem.measurement.kind in ("position", "pose") and len(problem.data) > LARGE_POSES
+    return problem.measurement.measure.registered and len(problem.data) > LARGE_POSES
 
 
-def blocks(problem: Problem) -> list[Problem]:
+def blocks(problem: ProblemRows) -> list[ProblemRows]:
     """The problems on consecutive blocks of :data:`BLOCK_POSES` poses (made once per problem)."""
     made = problem.__dict__.get("_blocks")
     if made is None:
         n = len(problem.data)
         parts = [problem.data.subset(np.arange(a, min(a + BLOCK_POSES, n))) for a in range(0, n, BLOCK_POSES)]
-        made = [type(problem)(problem.model, problem.measurement, part, problem.extension) for part in parts]
+        made = [problem.on(part) for part in parts]
         problem.__dict__["_blocks"] = made
     return made
 
 
-def _forget(block: Problem) -> None:
+def _forget(block: ProblemRows) -> None:
     """Drop a block's kept frames once used (kept for every block, they would add up to all poses')."""
-    block._frames = (None, None)
+    block.forget_frames()
 
 
-def evaluate(problem: Problem, theta: np.ndarray, cols: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+def evaluate(
+    problem: ProblemRows, theta: np.ndarray, cols: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray]:
     """Residuals and (for ``cols``) Jacobian rows of a large problem, block by block."""
     res, jac = [], []
     for block in blocks(problem):
-        r, j = block._evaluate(theta, cols)
+        r, j = block.rows(theta, cols)
         _forget(block)
         res.append(r)
         jac.append(j)
@@ -77,9 +89,9 @@ def evaluate(problem: Problem, theta: np.ndarray, cols: np.ndarray | None) -> tu
 
 
 def target_frames(
-    problem: Problem, theta: np.ndarray, in_instrument: bool
+    problem: ProblemRows, theta: np.ndarray, in_instrument: bool
 ) -> tuple[Frames, np.ndarray, np.ndarray]:
-    """:meth:`Problem.target_frames` of a large problem: its frames hold the tip frame only."""
+    """:meth:`ProblemRows.target_frames` of a large problem: its frames hold the tip frame only."""
     tips_r, tips_p, rots, poss = [], [], [], []
     for block in blocks(problem):
         frames, rot, pos = block.target_frames(theta, in_instrument)
@@ -93,7 +105,7 @@ def target_frames(
 
 
 def triangle(
-    problem: Problem,
+    problem: ProblemRows,
     theta: np.ndarray,
     free: np.ndarray,
     x_scale: np.ndarray,
@@ -104,7 +116,7 @@ def triangle(
     cols = np.arange(problem.n_params)[free]
     tri = np.empty((0, len(cols) + 1))
     for block in blocks(problem):
-        r, j = block._evaluate(theta, cols)
+        r, j = block.rows(theta, cols)
         _forget(block)
         tri = _r_of(np.vstack([tri, np.column_stack([j * x_scale, r])]))
     jac, res = extra
@@ -116,7 +128,7 @@ def _r_of(matrix: np.ndarray) -> np.ndarray:
     return np.asarray(np.linalg.qr(matrix, mode="r"))
 
 
-def gram(problem: Problem, theta: np.ndarray, free: np.ndarray) -> np.ndarray:
+def gram(problem: ProblemRows, theta: np.ndarray, free: np.ndarray) -> np.ndarray:
     """``JᵀJ`` over the free columns (P, P), summed block by block for a large problem."""
     cols = np.arange(problem.n_params)[free]
     if not is_large(problem):
@@ -124,14 +136,14 @@ def gram(problem: Problem, theta: np.ndarray, free: np.ndarray) -> np.ndarray:
         return j.T @ j
     out = np.zeros((len(cols), len(cols)))
     for block in blocks(problem):
-        j = block._evaluate(theta, cols)[1]
+        j = block.rows(theta, cols)[1]
         _forget(block)
         out += j.T @ j
     return out
 
 
 def normal_terms(
-    problem: Problem, theta: np.ndarray, free: np.ndarray
+    problem: ProblemRows, theta: np.ndarray, free: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, float, int]:
     """``JᵀJ`` (P, P), ``Jᵀr`` (P,), ``rᵀr`` and the number of rows, over the free columns, block
     by block for a large problem (the Jacobian of every pose is never held)."""
@@ -139,7 +151,7 @@ def normal_terms(
     parts = blocks(problem) if is_large(problem) else [problem]
     gram, grad, rr, rows = np.zeros((len(cols), len(cols))), np.zeros(len(cols)), 0.0, 0
     for part in parts:
-        res, jac = part._evaluate(theta, cols)
+        res, jac = part.rows(theta, cols)
         if part is not problem:
             _forget(part)
         gram, grad, rr, rows = gram + jac.T @ jac, grad + jac.T @ res, rr + float(res @ res), rows + len(res)
@@ -147,7 +159,7 @@ def normal_terms(
 
 
 def lm_triangle(
-    problem: Problem,
+    problem: ProblemRows,
     full: Callable[[np.ndarray], np.ndarray],
     free: np.ndarray,
     x_scale: np.ndarray,
@@ -167,7 +179,7 @@ def lm_triangle(
     return make
 
 
-def sampled(setup: Setup) -> Setup:
+def sampled(setup: _Setup) -> _Setup:
     """``setup`` on a random subset of :data:`SAMPLE_POSES` poses when its problem is large."""
     return replace(setup, problem=sample(setup.problem)) if is_large(setup.problem) else setup
 
@@ -179,6 +191,6 @@ def sample_poses(data: Dataset) -> Dataset:
     return data.subset(np.sort(np.random.default_rng(0).choice(len(data), SAMPLE_POSES, replace=False)))
 
 
-def sample(problem: Problem) -> Problem:
+def sample(problem: ProblemRows) -> ProblemRows:
     """The problem on a random subset of :data:`SAMPLE_POSES` poses (seed 0, in row order)."""
-    return type(problem)(problem.model, problem.measurement, sample_poses(problem.data), problem.extension)
+    return problem.on(sample_poses(problem.data))

@@ -236,10 +236,10 @@ class Diagnosis:
         }
 
 
-def _counted(sum_sq: float, n_res: int, kind: str, n_poses: int) -> tuple[float, int]:
+def _counted(sum_sq: float, n_res: int, pairs: bool, n_poses: int) -> tuple[float, int]:
     """A residual sum of squares and its number of independent equations: for distance data,
-    the ``3 N - 6`` that the pairs' distances carry, the sum scaled to match."""
-    if kind != "distance":
+    the ``3 N - 6`` that the pairs' distances carry (``pairs``), the sum scaled to match."""
+    if not pairs:
         return sum_sq, n_res
     n_eq = 3 * n_poses - 6
     return sum_sq * n_eq / n_res, n_eq
@@ -248,7 +248,7 @@ def _counted(sum_sq: float, n_res: int, kind: str, n_poses: int) -> tuple[float,
 def _rss(cal: Calibration, data: Dataset) -> tuple[float, int]:
     """Residual sum of squares of a fit and its number of independent equations."""
     res = cal.problem(data).residuals(cal.theta)
-    return _counted(float(res @ res), len(res), cal.measurement.kind, len(data))
+    return _counted(float(res @ res), len(res), cal.measurement.measure.by_pairs, len(data))
 
 
 def _f_value(rss0: float, rss1: float, extra: int, dof: int) -> float:
@@ -268,7 +268,7 @@ def _f_test(base: Calibration, ext: Calibration, data: Dataset) -> float:
 def _f_screened(base: Calibration, lin: Linearised, screen: Screen, extra: int) -> float:
     """The F-test of a candidate only screened: its linearised fit's residual sum against the
     base's (whose residuals ``lin`` holds)."""
-    kind, n_poses, n_res = lin.kind, len(lin.data), len(lin.residuals)
+    kind, n_poses, n_res = lin.kind.by_pairs, len(lin.data), len(lin.residuals)
     rss0, n_eq = _counted(float(lin.residuals @ lin.residuals), n_res, kind, n_poses)
     rss1, _ = _counted(screen.rss, n_res, kind, n_poses)
     return _f_value(rss0, rss1, extra, n_eq - base.identifiability.n_identifiable - extra)

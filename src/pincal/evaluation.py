@@ -91,7 +91,7 @@ def pose_errors(
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """Per-pose position error norms [m] and orientation error angles [rad] (pose data); a large
     position or pose set by blocks of :data:`BLOCK_POSES` (its frames are never all held)."""
-    if len(data) > BLOCK_POSES and measurement.kind in ("position", "pose"):
+    if len(data) > BLOCK_POSES and measurement.measure.registered:
         parts = [
             pose_errors(
                 model,
@@ -105,11 +105,11 @@ def pose_errors(
         angles = [b for _, b in parts if b is not None]
         return np.concatenate([a for a, _ in parts]), np.concatenate(angles) if angles else None
     problem = Problem(model, measurement, data, extension)
-    if measurement.kind == "points":  # from the fitted points
+    if measurement.measure.fixed_points:  # from the fitted points
         return np.linalg.norm(problem.residuals(theta)[: 3 * len(data)].reshape(-1, 3), axis=1), None
     pos, rot = problem.predict(theta)
     err = np.linalg.norm(pos - data.points, axis=1)
-    if measurement.kind != "pose":
+    if not measurement.measure.orientation:
         return err, None
     rel = np.transpose(data.rotations(), (0, 2, 1)) @ rot
     cos = np.clip((np.trace(rel, axis1=1, axis2=2) - 1.0) / 2.0, -1.0, 1.0)
@@ -135,9 +135,9 @@ def evaluate(
     extension: Extension | None = None,
 ) -> ErrorStats:
     """Error statistics of the unknowns ``theta`` on ``data``, as the report states them."""
-    if measurement.kind == "distance":
+    if measurement.measure.by_pairs:
         return ErrorStats.of(distance_errors(model, measurement, theta, data, extension))
-    if measurement.kind == "points":  # from each point's mean: the fitted points are not needed
+    if measurement.measure.fixed_points:  # from each point's mean: the fitted points are not needed
         tips = Problem(model, measurement, data, extension).target_frames(theta)[2]
         return ErrorStats.of_points(*point_errors(tips, data, measurement.point_distances))
     return ErrorStats.of(*pose_errors(model, measurement, theta, data, extension))
@@ -210,7 +210,7 @@ def placement_errors(
         left_out: row numbers the outlier screen left out of the fit.
         misplaced: row numbers at another point than their own (:func:`misplaced_rows`).
     """
-    if measurement.kind != "points" or data.labels is None:
+    if not measurement.measure.fixed_points or data.labels is None:
         return []
     place = np.array([placement(name) for name in data.point_names])[data.labels]
     out = np.isin(data.row_numbers, left_out)
@@ -268,7 +268,7 @@ def misplaced_rows(
 ) -> list[Misplaced]:
     """The rows of fixed-point data that sit at another point of their placement (points named
     ``<placement>/<name>`` belong to one placement), by the calibrated model; else an empty list."""
-    if measurement.kind != "points" or data.labels is None:
+    if not measurement.measure.fixed_points or data.labels is None:
         return []
     tips = Problem(model, measurement, data, extension).target_frames(theta)[2]
     present = np.unique(data.labels)
@@ -301,7 +301,7 @@ def point_spread(
 ) -> float:
     """The largest distance between two fixed points' mean tip positions [m] (0 for one point):
     how much of the workspace the rows of fixed-point data see."""
-    if measurement.kind != "points" or data.labels is None:
+    if not measurement.measure.fixed_points or data.labels is None:
         raise ValueError("point_spread needs fixed-point data")
     tips = Problem(model, measurement, data, extension).target_frames(theta)[2]
     means = point_means(tips, data.labels, len(data.point_names))[np.unique(data.labels)]

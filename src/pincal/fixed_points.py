@@ -25,17 +25,14 @@ robot model is the calibrated one.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .data import Dataset
 from .errors import DataError
+from .kinematics import Frames
 from .options import UNITS
-
-if TYPE_CHECKING:
-    from .kinematics import Frames
-    from .measurements import Problem
+from .rows import ProblemRows
 
 #: A known distance between two named points [m].
 PointDistance = tuple[str, str, float]
@@ -167,7 +164,7 @@ def point_errors(
 
 
 def gauge_directions(
-    problem: Problem, theta: np.ndarray, candidates: np.ndarray, scale: np.ndarray
+    problem: ProblemRows, theta: np.ndarray, candidates: np.ndarray, scale: np.ndarray
 ) -> tuple[np.ndarray, tuple[str, ...]]:
     """The motions of the whole set-up that the candidate parameters can make and no residual
     sees, to first order: (P, g) directions in θ and their names.
@@ -235,7 +232,7 @@ def gauge_reasons(
 
 
 def points_rows(
-    problem: Problem,
+    problem: ProblemRows,
     theta: np.ndarray,
     cols: np.ndarray | None,
     frames: Frames,
@@ -270,13 +267,13 @@ def points_rows(
 
 
 def blind_jacobian(
-    problem: Problem, theta: np.ndarray, jacobian: np.ndarray, candidates: np.ndarray, scale: np.ndarray
+    problem: ProblemRows, theta: np.ndarray, jacobian: np.ndarray, candidates: np.ndarray, scale: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
     """For fixed-point data, the Jacobian with its gauges made exactly blind, the gauges (P, g)
     and their names (:func:`gauge_directions`); other data: the Jacobian as it is, no gauges.
     Linearised, a gauge looks like a gain (shrinking everything shrinks every residual): the
     identifiable set and the parameter choice both need it gone."""
-    if problem.measurement.kind != "points":
+    if not problem.measurement.measure.fixed_points:
         return jacobian, np.empty((problem.n_params, 0)), ()
     gauges, names = gauge_directions(problem, theta, candidates, scale)
     return without_gauges(jacobian, gauges, scale), gauges, names

@@ -20,7 +20,7 @@ def held_out_rows(problem: Problem, folds: int | None, seed: int) -> list[np.nda
     rows of every pair with a pose in it): linearised cross-validation's groups."""
     n_poses = len(problem.data)
     held = [np.array([i]) for i in range(n_poses)] if folds is None else fold_indices(n_poses, folds, seed)
-    if problem.measurement.kind == "distance":  # the pairs the data has (all, Gao's or given)
+    if problem.measurement.measure.by_pairs:  # the pairs the data has (all, Gao's or given)
         groups = [np.flatnonzero(np.isin(problem.pairs, h).any(axis=1)) for h in held]
         return [g for g in groups if len(g)]
     group = np.full(n_poses + 1, -1)  # each pose's group, and last -1: no group

@@ -194,7 +194,7 @@ def selection_path(
     res = res - q @ (q.T @ res)
     groups = held_out_rows(problem, folds, seed)
     leave_out = _LeaveOut(q, groups)
-    pairs = problem.measurement.kind == "distance"
+    pairs = problem.measurement.measure.by_pairs
     n_units, n_fit_units = (sum(len(g) for g in groups), len(res)) if pairs else (len(data), len(data))
 
     def rms(sse: np.ndarray, units: float) -> np.ndarray:

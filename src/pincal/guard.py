@@ -85,7 +85,7 @@ JUDGED_POSES = 5_000
 def judged_on(setup: Setup) -> Setup:
     """``setup``, or the same on :data:`JUDGED_POSES` random poses of a large position or pose set."""
     problem = setup.problem
-    if len(problem.data) <= JUDGED_POSES or problem.measurement.kind not in ("position", "pose"):
+    if len(problem.data) <= JUDGED_POSES or not problem.measurement.measure.registered:
         return setup
     keep = np.sort(np.random.default_rng(0).choice(len(problem.data), JUDGED_POSES, replace=False))
     sub = Problem(problem.model, problem.measurement, problem.data.subset(keep), problem.extension)

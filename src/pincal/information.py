@@ -28,6 +28,7 @@ from .data import Dataset
 from .effects import Extension
 from .fixed_points import PointDistance
 from .identifiability import analyse, parameter_scale
+from .kinds import get_kind
 from .kinematics import Chain, forward
 from .mdh import make_model
 from .measurements import Measurement, Problem
@@ -72,11 +73,12 @@ class Information:
         distances: tuple[PointDistance, ...] = (),
     ) -> None:
         self.robot, self.measure, self.extension, self.noise = robot, measure, extension, noise
+        self.kind = get_kind(measure)
         self.mdl = make_model(model, robot)
         self.labels, self.distances, self.weight = labels, distances, weight
         n_points = 0 if labels is None else int(labels.max()) + 1
         self.point_names = tuple(str(k) for k in range(n_points))
-        self.sigma = np.array([noise] * 3 + [weight * rot_noise] * (3 if measure == "pose" else 0))
+        self.sigma = np.array([noise] * 3 + [weight * rot_noise] * (3 if self.kind.orientation else 0))
         raws = [self.raw(q, tool) for tool in tools]
         problem = raws[0][2]
         self.names, self.units, self.n_model = problem.names, problem.units, problem.n_model
@@ -119,14 +121,15 @@ class Information:
 
     def measurement(self, tool: np.ndarray, kind: str | None = None) -> Measurement:
         """The fit's measurement model with the measured point ``tool`` (3,) [m]."""
-        kind = kind or ("position" if self.measure == "distance" else self.measure)
+        kind = kind or ("position" if self.kind.by_pairs else self.measure)
+        fixed_points = get_kind(kind).fixed_points
         return Measurement(
             kind,
-            fit_instrument=kind in ("position", "pose") and self.measure not in ("distance", "points"),
+            fit_instrument=get_kind(kind).registered and self.kind.registered,
             tool=pin.SE3(np.eye(3), tool),
             rotation_weight=self.weight,
-            points=self.point_names if kind == "points" else (),
-            point_distances=self.distances if kind == "points" else (),
+            points=self.point_names if fixed_points else (),
+            point_distances=self.distances if fixed_points else (),
         )
 
     def raw(
@@ -139,10 +142,10 @@ class Information:
         tips = frames.tip_translation + frames.tip_rotation @ tool
         meas = self.measurement(tool, kind)
         quats = None
-        if meas.kind == "pose":
+        if meas.measure.orientation:
             quats = np.array([pin.Quaternion(r).coeffs()[[3, 0, 1, 2]] for r in frames.tip_rotation])
-        labels = (self.labels if labels is None else labels) if meas.kind == "points" else None
-        names = self.point_names if meas.kind == "points" else ()
+        labels = (self.labels if labels is None else labels) if meas.measure.fixed_points else None
+        names = self.point_names if meas.measure.fixed_points else ()
         data = Dataset(self.robot.joint_names, q, tips, quats, labels=labels, point_names=names)
         problem = Problem(self.mdl, meas, data, self.extension)
         jac = problem.jacobian(problem.initial_theta())
@@ -153,7 +156,7 @@ class Information:
 
     def for_analysis(self, rows: np.ndarray, points: np.ndarray) -> np.ndarray:
         """The rows stacked as the fit sees them (pairs of poses for distance data)."""
-        if self.measure != "distance":
+        if not self.kind.by_pairs:
             return rows.reshape(-1, rows.shape[2])
         i, j = np.triu_indices(len(points), 1)
         return pair_rows(rows[i], rows[j], points[i] - points[j])
@@ -161,7 +164,7 @@ class Information:
     def whiten(self, rows: np.ndarray) -> np.ndarray:
         """Rows on the identifiable unknowns, scaled, divided by their noise."""
         scaled = rows[:, :, self.free] * self.scale[self.free]
-        sigma = self.sigma if self.measure != "distance" else np.full(3, self.noise * np.sqrt(2))
+        sigma = self.sigma if not self.kind.by_pairs else np.full(3, self.noise * np.sqrt(2))
         return scaled / sigma[None, :, None]
 
     def prior(self, known: np.ndarray) -> np.ndarray:
@@ -172,7 +175,7 @@ class Information:
     def candidate_rows(self, h: int, index: np.ndarray, chosen: Sequence[int]) -> np.ndarray:
         """Rows (len(index), r, P) each candidate would add to the ``chosen`` poses (hypothesis h)."""
         g = self.rows[h]
-        if self.measure != "distance":
+        if not self.kind.by_pairs:
             return g[index]
         chosen_ = np.asarray(chosen, dtype=int)
         tips = self.tips[h]
@@ -183,13 +186,13 @@ class Information:
         so that ``tr(W cov)`` is the mean squared error of the predicted point (distance) [m²]."""
         out = []
         for tool in tools:
-            kind = "position" if self.measure in ("distance", "points") else None
+            kind = "position" if not self.kind.registered else None
             rows, tips, problem, _ = self.raw(q_task, tool, kind)
             jt = np.zeros((len(q_task), 3, len(self.names)))
             where = [self.names.index(n) for n in problem.names if n in self.names]
             jt[:, :, where] = rows[:, :3, [problem.names.index(self.names[k]) for k in where]]
             jt = jt[:, :, self.free] * self.scale[self.free]
-            if self.measure == "distance":
+            if self.kind.by_pairs:
                 i, j = np.triu_indices(len(q_task), 1)
                 jt = pair_rows(jt[i], jt[j], tips[i] - tips[j])[:, None]
             out.append(np.einsum("trp,trq->pq", jt, jt) / len(jt))

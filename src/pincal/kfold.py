@@ -68,7 +68,7 @@ def held_out_errors(cal: Calibration, data: Dataset, held: np.ndarray) -> list[n
         (cal.measurement, cal.nominal_theta),
         (cal.measurement, cal.theta),
     ):
-        if cal.measurement.kind == "distance":
+        if cal.measurement.measure.by_pairs:
             pairs = all_pairs(len(data))
             pairs = pairs[np.isin(pairs, held).any(axis=1)]
             problem = Problem(cal.model, replace(meas, pairs=pairs), data, cal.extension)

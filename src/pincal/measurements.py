@@ -18,7 +18,8 @@ Residuals (model minus measurement):
   row [m], then one per known distance between points (:mod:`pincal.fixed_points`); the points'
   positions (3 each, [m]) take the registration's place in θ.
 
-Position and pose data of many poses are evaluated block by block (:mod:`pincal.chunked`).
+Position and pose data of many poses are evaluated block by block (:mod:`pincal.chunked`). Each
+kind's rows are its class's (:mod:`pincal.kinds`).
 """
 
 from __future__ import annotations
@@ -32,11 +33,12 @@ import pinocchio as pin
 from . import chunked
 from .data import Dataset
 from .effects import Extension
-from .errors import DataError
-from .fixed_points import PointDistance, check_distances, point_index, point_means, points_rows
-from .kinematics import Chain, Frames, forward, jlog3, log3, stacked_dot, twist_columns
+from .fixed_points import PointDistance, check_distances, point_index, point_means
+from .kinds import MeasurementKind, get_kind
+from .kinematics import Chain, Frames, forward, stacked_dot, twist_columns
 from .models import Model
-from .options import MEASURES, ROTATION_WEIGHT
+from .options import MEASURES as MEASURES
+from .options import ROTATION_WEIGHT
 from .pairs import all_pairs as all_pairs  # re-exported: the pairings live in pincal.pairs
 from .pairs import gao_pairs as gao_pairs
 
@@ -68,24 +70,28 @@ class Measurement:
     point_distances: tuple[PointDistance, ...] = ()
 
     def __post_init__(self) -> None:
-        if self.kind not in MEASURES:
-            raise DataError(f"unknown measure {self.kind!r}: choose one of {', '.join(MEASURES)}")
+        get_kind(self.kind)  # a DataError naming the kinds if there is none of that name
         check_distances(self.points, self.point_distances)
+
+    @property
+    def measure(self) -> MeasurementKind:
+        """The measurement kind :attr:`kind` names (:mod:`pincal.kinds`)."""
+        return get_kind(self.kind)
 
     @property
     def n_instrument(self) -> int:
         """Number of registration unknowns."""
-        return 6 if self.fit_instrument and self.kind in ("position", "pose") else 0
+        return 6 if self.fit_instrument and self.measure.registered else 0
 
     @property
     def n_points(self) -> int:
         """Number of unknown point coordinates (fixed-point data)."""
-        return 3 * len(self.points) if self.kind == "points" else 0
+        return 3 * len(self.points) if self.measure.fixed_points else 0
 
     @property
     def n_tool(self) -> int:
         """Number of tool unknowns."""
-        return 0 if not self.fit_tool else (6 if self.kind == "pose" else 3)
+        return self.measure.tool_dof if self.fit_tool else 0
 
     def names(self) -> tuple[list[str], list[str]]:
         """Names and units of the measurement unknowns."""
@@ -128,8 +134,7 @@ class Problem:
     def __init__(
         self, model: Model, measurement: Measurement, data: Dataset, extension: Extension | None = None
     ) -> None:
-        if measurement.kind == "pose" and not data.has_orientation:
-            raise DataError("--measure pose needs the orientation columns qw,qx,qy,qz")
+        measurement.measure.check(data)
         self.model = model
         self.measurement = measurement
         self.data = data
@@ -143,14 +148,22 @@ class Problem:
         self.regressors = extension.regressors(data.q) if extension else np.empty((len(data), 0))
         self.pairs = np.empty((0, 2), dtype=int)
         self.measured_distances = np.empty(0)
-        if measurement.kind == "distance":
+        if measurement.measure.by_pairs:
             self.pairs = measurement.pairs if measurement.pairs is not None else all_pairs(len(data))
             self.measured_distances = np.linalg.norm(
                 data.points[self.pairs[:, 0]] - data.points[self.pairs[:, 1]], axis=1
             )
-        self.measured_rotations = data.rotations() if measurement.kind == "pose" else np.empty((0, 3, 3))
-        self.point_index = point_index(data, measurement.points) if measurement.kind == "points" else None
+        self.measured_rotations = data.rotations() if measurement.measure.orientation else np.empty((0, 3, 3))
+        self.point_index = point_index(data, measurement.points) if measurement.measure.fixed_points else None
         self._frames: tuple[Any, Any] = (None, None)  # the last θ's frames
+
+    def on(self, data: Dataset) -> Problem:
+        """The same problem on other poses (a block, a sample)."""
+        return Problem(self.model, self.measurement, data, self.extension)
+
+    def forget_frames(self) -> None:
+        """Drop the frames kept for the last θ (a block's, once used)."""
+        self._frames = (None, None)
 
     @property
     def n_params(self) -> int:
@@ -179,8 +192,7 @@ class Problem:
     def row_poses(self) -> np.ndarray:
         """The pose each residual row belongs to (-1: none, as a known distance's row); for
         every measure but ``distance``, whose rows are pairs (:attr:`pairs`)."""
-        per_pose = {"position": 3, "pose": 6, "points": 3}[self.measurement.kind]
-        rows = np.repeat(np.arange(len(self.data)), per_pose)
+        rows = np.repeat(np.arange(len(self.data)), self.measurement.measure.width)
         return np.concatenate([rows, np.full(len(self.measurement.point_distances), -1)])
 
     def reached(self, theta: np.ndarray) -> np.ndarray:
@@ -226,13 +238,13 @@ class Problem:
 
     def residuals(self, theta: np.ndarray) -> np.ndarray:
         """Stacked residuals [m] (see the module docstring)."""
-        return self._evaluate(theta, None)[0]
+        return self.rows(theta, None)[0]
 
     def jacobian(self, theta: np.ndarray, free: np.ndarray | None = None) -> np.ndarray:
         """Analytic Jacobian of :meth:`residuals` with respect to θ (its columns ``free``, a mask
         or indices, if given: only those are computed)."""
         cols = np.arange(self.n_params) if free is None else np.arange(self.n_params)[free]
-        return self._evaluate(theta, cols)[1]
+        return self.rows(theta, cols)[1]
 
     def target_jacobian(
         self,
@@ -300,36 +312,8 @@ class Problem:
             add(rot, pos, pin.Jexp6(pin.Motion(theta[k : k + 6]))[:, cols[here] - k], here)
         return out
 
-    def _evaluate(self, theta: np.ndarray, cols: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    def rows(self, theta: np.ndarray, cols: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
         """Residuals and, if columns ``cols`` are asked for, their Jacobian (else an empty array)."""
         if chunked.is_large(self):
             return chunked.evaluate(self, theta, cols)
-        m = self.measurement
-        frames, rot, pos = self.target_frames(theta, in_instrument=m.kind not in ("distance", "points"))
-        if m.kind == "points":
-            return points_rows(self, theta, cols, frames, (rot, pos))
-        if m.kind == "distance":
-            i, j = self.pairs[:, 0], self.pairs[:, 1]
-            diff = pos[i] - pos[j]
-            dist = np.linalg.norm(diff, axis=1)
-            res = dist - self.measured_distances
-            if cols is None:
-                return res, np.empty((0, 0))
-            jac_v = self.target_jacobian(theta, cols, frames, (rot, pos))
-            u = diff / np.where(dist > 0, dist, 1.0)[:, None]  # a pose paired with itself: no direction
-            return res, np.einsum("pk,pkc->pc", u, jac_v[i] - jac_v[j])
-
-        res_p = pos - self.data.points
-        if m.kind == "position":
-            res = res_p.reshape(-1)
-        else:
-            err = np.transpose(self.measured_rotations, (0, 2, 1)) @ rot
-            log = log3(err)
-            res = np.concatenate([res_p, m.rotation_weight * log], axis=1).reshape(-1)
-        if cols is None:
-            return res, np.empty((0, 0))
-        if m.kind == "position":
-            return res, self.target_jacobian(theta, cols, frames, (rot, pos)).reshape(-1, len(cols))
-        # d log3(R_measᵀ R) = Jlog3 · Rᵀ · (angular velocity in the instrument's axes)
-        to_log = m.rotation_weight * (jlog3(err, log) @ np.transpose(rot, (0, 2, 1)))
-        return res, self.target_jacobian(theta, cols, frames, (rot, pos), to_log).reshape(-1, len(cols))
+        return self.measurement.measure.rows(self, theta, cols)

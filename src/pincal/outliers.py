@@ -28,7 +28,7 @@ def pose_scores(problem: Problem, theta: np.ndarray) -> np.ndarray:
     """The size of each pose's residual (N,) [m], rotations weighted as in the fit."""
     res = problem.residuals(theta)
     n = len(problem.data)
-    if problem.measurement.kind == "distance":
+    if problem.measurement.measure.by_pairs:
         sq = np.zeros(n)
         count = np.zeros(n)
         for col in (0, 1):

@@ -38,7 +38,8 @@ from .errors import DataError, IdentifiabilityError
 from .files import atomic_write
 from .fixed_points import PointDistance
 from .information import Information, tool_hypotheses
-from .measurements import MEASURES, ROTATION_WEIGHT
+from .kinds import get_kind
+from .measurements import ROTATION_WEIGHT
 from .robots import Robot
 from .threads import limited
 
@@ -137,7 +138,7 @@ def _design(info: Information, q: np.ndarray, labels: np.ndarray | None, weight:
     sv = np.linalg.svd(stacked, compute_uv=False)
     cov = np.linalg.pinv(fisher)
     model2 = float(np.trace(weight @ cov))
-    noise2 = (2 if info.measure == "distance" else 3) * info.noise**2
+    noise2 = (2 if info.kind.by_pairs else 3) * info.noise**2
     return Design(
         q=q,
         condition_number=float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf"),
@@ -281,11 +282,10 @@ def _candidates(
 
 def _check(measure: str, criterion: str, n_poses: int, candidates: int, sockets: np.ndarray | None) -> None:
     """Refuse what cannot be planned, with what to do."""
-    if measure not in MEASURES:
-        raise DataError(f"unknown measure {measure!r}: choose one of {', '.join(MEASURES)}")
+    kind = get_kind(measure)  # a DataError naming the kinds if there is none of that name
     if criterion not in CRITERIA:
         raise DataError(f"unknown criterion {criterion!r}: choose one of {', '.join(CRITERIA)}")
-    if measure == "points" and sockets is None:
+    if kind.fixed_points and sockets is None:
         raise DataError("planning fixed-point data needs where the sockets are: --sockets X,Y,Z;X,Y,Z")
     if not 0 < n_poses <= candidates:
         raise DataError(f"--poses {n_poses} must be between 1 and the number of candidates ({candidates})")
@@ -294,9 +294,10 @@ def _check(measure: str, criterion: str, n_poses: int, candidates: int, sockets:
 def _equations(measure: str, n_poses: int) -> int:
     """Independent equations of ``n_poses`` poses: 3 or 6 each, and for distances between N
     points at most their 3N - 6 coordinates up to a rigid motion (and at most N(N-1)/2 pairs)."""
-    if measure == "distance":
+    kind = get_kind(measure)
+    if kind.by_pairs:
         return max(0, min(3 * n_poses - 6, n_poses * (n_poses - 1) // 2))
-    return n_poses * (6 if measure == "pose" else 3)
+    return n_poses * kind.width
 
 
 #: The share of the poses a calibration may fit without: ``calibrate``'s cross-validation

@@ -165,17 +165,16 @@ def _fit_checks(cal: Calibration, problem: Problem, size: float, loss: str) -> I
             f"robust fit ({where}: rows {_rows(data, far)})",
         )
     fit_mm = cal.train_after.rms_mm
-    if robust and far.any() and cal.measurement.kind in ("position", "pose"):
+    if robust and far.any() and cal.measurement.measure.registered:
         pos, _ = problem.predict(cal.theta)
         errors = np.linalg.norm(pos - data.points, axis=1)[~far]
         fit_mm = float(np.sqrt(np.mean(errors**2))) * 1e3
-    what = {"points": "the tip misses its fixed points", "distance": "the distances miss"}
     yield Check(
         "fit",
         fit_mm * 1e-3 / size,
         FIT,
         "ratio",
-        f"{what.get(cal.measurement.kind, 'the calibrated robot misses the points')} by "
+        f"{cal.measurement.measure.misses} by "
         f"{mm_text(fit_mm * 1e-3)} RMS, {share_text(fit_mm * 1e-3, size)}",
     )
     after = cal.train_after
@@ -218,7 +217,7 @@ def _model_checks(cal: Calibration, problem: Problem, size: float, loss: str) ->
         if free
     ]
     how = f" with the {' and '.join(fitted)} fitted" if fitted else ""
-    what = "distances" if m.kind == "distance" else "data"
+    what = m.measure.data_word
     yield Check(
         "before",
         reach_before / size,
@@ -227,7 +226,7 @@ def _model_checks(cal: Calibration, problem: Problem, size: float, loss: str) ->
         f"the nominal robot misses the {what} by {err_text(cal.train_before)}{how}, "
         f"{share_text(reach_before, size)}",
     )
-    known = [d for _, _, d in m.point_distances] if m.kind == "points" else []
+    known = [d for _, _, d in m.point_distances] if m.measure.fixed_points else []
     off_mm = cal.train_before.point_distance_error_mm
     if known and off_mm is not None:
         slack = max(DISTANCE * min(known), DISTANCE_FLOOR)  # [m]
@@ -265,7 +264,7 @@ def _model_checks(cal: Calibration, problem: Problem, size: float, loss: str) ->
         )
     _, _, tool = cal.split()
     reach = float(np.linalg.norm(tool.translation))
-    thing = "target frame" if cal.measurement.kind == "pose" else "measured point"
+    thing = cal.measurement.measure.thing
     yield Check(
         "tool",
         reach / size,
@@ -279,7 +278,7 @@ def _model_checks(cal: Calibration, problem: Problem, size: float, loss: str) ->
 def _points(problem: Problem, theta: np.ndarray) -> np.ndarray:
     """Where a fit puts the measured point (N, 3) [m]: in the instrument's frame, else (distance,
     fixed points) in the base frame."""
-    if problem.measurement.kind in ("position", "pose"):
+    if problem.measurement.measure.registered:
         return problem.predict(theta)[0]
     return problem.target_frames(theta)[2]
 

@@ -87,7 +87,7 @@ def _readings(cal: Calibration, data: Dataset, degrees: bool, quaternion_order: 
         else:
             q[:, revolute] = np.deg2rad(q[:, revolute])
             yield "degrees", "looks like degrees read as radians: pass --degrees", replace(data, q=q), {}
-    if m.kind in ("position", "pose"):
+    if m.measure.registered:
         for i, j in ((0, 1), (0, 2), (1, 2)):
             a, b = "xyz"[i], "xyz"[j]
             points = data.points.copy()
@@ -100,7 +100,7 @@ def _readings(cal: Calibration, data: Dataset, degrees: bool, quaternion_order: 
         if not m.fit_tool:
             fix = "the measured point is not where --tool-point says: drop --tool-point"
             yield "tool_point", fix, data, {"tool": None}
-    if m.kind == "pose" and data.quaternions is not None:
+    if m.measure.orientation and data.quaternions is not None:
         quats = data.quaternions
         if quaternion_order == "xyzw":
             fix = "the quaternion looks like w,x,y,z: drop --quaternion-order xyzw"

@@ -45,7 +45,7 @@ def initial_measurement(robot: Robot, data: Dataset, measurement: Measurement) -
     Alternates a rigid registration of the nominal points (Kabsch) with a linear least-squares
     solve of the tool point, then averages the tool orientation for pose data.
     """
-    if measurement.kind == "points":  # no instrument; the points start at their rows' means
+    if measurement.measure.fixed_points:  # no instrument; the points start at their rows' means
         return measurement
     data = sample_poses(data)  # a first guess: a random subset of many poses will do (issue 33)
     frames = forward(Chain.nominal(robot), data.q)
@@ -61,7 +61,7 @@ def initial_measurement(robot: Robot, data: Dataset, measurement: Measurement) -
             rhs = (data.points - pos @ reg.rotation.T - reg.translation).reshape(-1)
             point = np.linalg.lstsq(lhs, rhs, rcond=None)[0]
     tool_rot = tool.rotation
-    if measurement.kind == "pose" and measurement.fit_tool:
+    if measurement.measure.orientation and measurement.fit_tool:
         rel = np.transpose(reg.rotation @ rot, (0, 2, 1)) @ data.rotations()
         tool_rot = project_so3(rel.sum(axis=0))
     return replace(measurement, instrument_T_base=reg, tool=pin.SE3(tool_rot, point))

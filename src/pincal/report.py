@@ -115,7 +115,7 @@ def report_dict(
         "held": dict(sorted(ident.reasons.items())),
         "not_identifiable": list(ident.gauges),
         "rotation_weight_m_per_rad": cal.measurement.rotation_weight
-        if cal.measurement.kind == "pose"
+        if cal.measurement.measure.orientation
         else None,
         "before_means": "nominal kinematics with the instrument registration and tool fitted",
         "urdf_means": "the URDF as it is: nominal tool, only the instrument registration fitted",
@@ -210,7 +210,7 @@ def report_warnings(
         out += _misplaced(
             misplaced_rows(cal.model, cal.measurement, cal.theta, test, cal.extension), test, "held-out"
         )
-    known = cal.measurement.point_distances if cal.measurement.kind == "points" else ()
+    known = cal.measurement.point_distances if cal.measurement.measure.fixed_points else ()
     unjudged = cal.test_after is not None and cal.test_after.point_distance_error_mm is None
     if test is not None and known and unjudged:
         pairs = ", ".join(f"{a}-{b}" for a, b, _ in known)

@@ -103,11 +103,11 @@ class HeldOut:
 
     def __init__(self, cal: Calibration, data: Dataset, folds: int, seed: int) -> None:
         self.problem = cal.problem(data)
-        self.kind = cal.measurement.kind
+        self.kind = cal.measurement.measure
         weight = 0.0 if cal.balance is None else cal.balance.weight
         self.fit = Delivered(self.problem, cal.theta, cal.identifiability.identifiable, weight)
         self.residuals, self.alone_residuals = self.fit.full, self.fit.alone
-        poses = self.problem.pairs if self.kind == "distance" else self.problem.row_poses()[:, None]
+        poses = self.kind.owners(self.problem)
         self.parts: list[np.ndarray] = [
             np.asarray(np.isin(poses, held).any(axis=1))
             for held in fold_indices(len(data), min(folds, len(data)), seed)
@@ -122,31 +122,14 @@ class HeldOut:
     def per_pose(self, rows: np.ndarray) -> np.ndarray:
         """Held-out rows (R, M) -> per pose the 3-D position error vectors (N, 3, M), or per pair
         the distance errors (P, 1, M)."""
-        if self.kind == "distance":
-            return rows[:, None, :]
-        width = 6 if self.kind == "pose" else 3
-        n_rows = (len(rows) // width) * width  # a known distance's row belongs to no pose
         order = np.concatenate([np.flatnonzero(t) for t in self.parts])
-        poses = self.problem.row_poses()[order]
-        kept = rows[poses >= 0][:n_rows]
-        return kept.reshape(-1, width, rows.shape[1])[:, :3, :]
+        return self.kind.per_pose(rows, self.kind.owners(self.problem)[order, 0])
 
     def noise_rows(self, sigma: float, draws: int, rng: np.random.Generator) -> np.ndarray:
         """Residual rows (rows, draws) [m] that noise of ``sigma`` per axis on each measured
         point makes."""
-        n = len(self.problem.data)
-        noise = rng.normal(scale=sigma, size=(n, 3, draws))
-        if self.kind == "distance":
-            pairs = self.problem.pairs
-            points = self.problem.data.points
-            u = points[pairs[:, 0]] - points[pairs[:, 1]]
-            u /= np.linalg.norm(u, axis=1, keepdims=True)
-            return np.einsum("pk,pkd->pd", u, noise[pairs[:, 0]] - noise[pairs[:, 1]])
-        width = 6 if self.kind == "pose" else 3
-        rows = np.zeros((n, width, draws))
-        rows[:, :3, :] = noise
-        extra = len(self.residuals) - n * width  # known distances: taken as exact
-        return np.concatenate([rows.reshape(n * width, draws), np.zeros((extra, draws))])
+        noise = rng.normal(scale=sigma, size=(len(self.problem.data), 3, draws))
+        return self.kind.noise_rows(self.problem, len(self.residuals), noise)
 
 
 def mean_square(per_pose: np.ndarray) -> np.ndarray:
@@ -234,7 +217,7 @@ VERDICT_POSES = 1_500
 
 def _sampled(cal: Calibration, data: Dataset, seed: int) -> tuple[Dataset, str]:
     """``data``, or :data:`VERDICT_POSES` random poses of it when large, and what was done."""
-    if len(data) <= VERDICT_POSES or cal.measurement.kind not in ("position", "pose"):
+    if len(data) <= VERDICT_POSES or not cal.measurement.measure.registered:
         return data, ""
     keep = np.sort(np.random.default_rng(seed).choice(len(data), VERDICT_POSES, replace=False))
     return data.subset(keep), f"; on {VERDICT_POSES} random poses of the {len(data)}"
@@ -269,11 +252,11 @@ def _decided(
     observed = held.per_pose(rows)[:, :, 0]
     if noise_mm is not None:
         return _with_noise(held, observed, noise_mm * 1e-3, "given", seed)
-    repeated = repeated_noise(data) if held.kind != "points" else None
+    repeated = repeated_noise(data) if not held.kind.fixed_points else None
     if repeated is not None:
         return _with_noise(held, observed, repeated, "estimated", seed)
     rms = float(np.sqrt(mean_square(observed[:, :, None])[0]))
-    if held.kind == "distance" or len(data) < 3 * NEIGHBOURS:
+    if held.kind.by_pairs or len(data) < 3 * NEIGHBOURS:
         why = "no noise figure, no repeated pose, and no per-pose errors to test"
         return ResidualVerdict(np.nan, "estimated", 0.0, "undetermined", rms * 1e3, np.nan, why)
     p_value, variable, noise = dependence(data, observed, seed)

@@ -50,14 +50,14 @@ class Linearised:
     def __init__(self, base: Calibration, data: Dataset, folds: int, seed: int) -> None:
         self.base, self.data = base, data
         problem = base.problem(data)
-        self.kind = base.measurement.kind
+        self.kind = base.measurement.measure
         self.residuals = problem.residuals(base.theta)
         self.free = np.flatnonzero(base.identifiability.identifiable)
         jac = problem.jacobian(base.theta, self.free)
         self.norms = np.where((n := np.linalg.norm(jac, axis=0)) > 0, n, 1.0)
         self.jac = jac / self.norms  # unit columns: the normal equations stay well scaled
         n_poses = len(data)
-        pose_of_row = problem.pairs if self.kind == "distance" else problem.row_poses()[:, None]
+        pose_of_row = self.kind.owners(problem)
         self.folds: list[tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]]] = []
         for held in fold_indices(n_poses, folds, seed):
             in_held = np.isin(pose_of_row, held)
@@ -78,10 +78,7 @@ class Linearised:
 
     def _held_out(self, test: np.ndarray, predicted: np.ndarray) -> np.ndarray:
         """Held-out errors [m]: per pose the 3-D position error, per pair the distance error."""
-        if self.kind == "distance":
-            return np.abs(predicted)
-        per_pose = 6 if self.kind == "pose" else 3
-        return np.linalg.norm(predicted.reshape(-1, per_pose)[:, :3], axis=1)
+        return self.kind.held_out(predicted)
 
     def screen(self, extension: Extension | None = None) -> Screen:
         """The linearised cross-validation and all-row fit, with ``extension``'s columns or none."""

@@ -39,7 +39,7 @@ from .identifiability import RCOND, Identifiability, analyse, check_rank, parame
 from .kinematics import Chain, forward
 from .lm import levenberg_marquardt
 from .mdh import make_model
-from .measurements import ROTATION_WEIGHT, Measurement, Problem, gao_pairs
+from .measurements import ROTATION_WEIGHT, Measurement, Problem, gao_pairs, get_kind
 from .models import Model
 from .outliers import find_outliers
 from .registration import initial_measurement
@@ -138,11 +138,11 @@ def set_up(
         else pin.SE3(np.eye(3), np.zeros(3) if tool is None else np.asarray(tool, float))
     )
     kind = measure or data.measured
-    if kind == "points" and data.labels is None:
+    if get_kind(kind).fixed_points and data.labels is None:
         raise DataError("--measure points needs a point column naming the fixed point of each row")
-    if point_distances and kind != "points":
+    if point_distances and not get_kind(kind).fixed_points:
         raise DataError(f"--point-distance is for --measure points (fixed-point data), not for {kind} data")
-    if not (isinstance(pairs, str) and pairs == "all") and kind != "distance":
+    if not (isinstance(pairs, str) and pairs == "all") and not get_kind(kind).by_pairs:
         named = pairs if isinstance(pairs, str) else "(an array)"
         raise DataError(f"--pairs {named} is for --measure distance, not for {kind} data")
     measurement = Measurement(
@@ -153,7 +153,7 @@ def set_up(
         fit_tool=tool is None,
         rotation_weight=rotation_weight,
         pairs=_pairs(pairs, len(data)),
-        points=data.point_names if kind == "points" else (),
+        points=data.point_names if get_kind(kind).fixed_points else (),
         point_distances=placed_distances(data.point_names, tuple(point_distances)),
     )
     problem = Problem(mdl, initial_measurement(robot, data, measurement), data, extension)
@@ -265,7 +265,7 @@ def identifiable_set(
         ident = replace(ident, reasons={**ident.reasons, **why}, gauges=blind)
     n_res, n_poses = len(jacobian), len(setup.data)
     n_needed = ident.n_identifiable
-    if not partial and problem.measurement.kind != "points":  # its rank is the gauges'
+    if not partial and not problem.measurement.measure.fixed_points:  # its rank is the gauges'
         n_needed = check_rank(problem, theta, jacobian, setup.scale, candidates, rcond)
     if n_res <= n_needed:
         per_pose = max(1, n_res // max(1, n_poses))

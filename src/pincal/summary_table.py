@@ -128,10 +128,8 @@ def summary(
     """A readable before/after table, the identifiability summary and what was chosen; with
     ``outcome``, the exported URDF alone's row where it differs from ``after``, and what remains."""
     ident = cal.identifiability
-    kind = cal.measurement.kind
-    names = {"distance": "abs. distance error over pairs", "points": "fixed points"}
-    what = names.get(kind, "position error")
-    stat = "mean from the point's mean / distance error" if kind == "points" else "RMS / max"
+    kind = cal.measurement.measure
+    what, stat = kind.error, kind.statistic
     lines = [
         f"robot {cal.robot.name} ({cal.robot.n_joints} joints, tip {cal.robot.tip}), model {cal.model.kind}, "
         f"measure {cal.measurement.kind}, {cal.n_poses} poses",
@@ -144,7 +142,7 @@ def summary(
     if cal.test_after is not None:
         lines.append(_row("held out", cal.test_urdf, cal.test_before, cal.test_after))
     lines += _exported_rows(cal, outcome)
-    fitted = "tool and points" if kind == "points" else "registration and tool"
+    fitted = kind.fitted
     lines.append(f"  (before: nominal kinematics, {fitted} fitted; URDF as is: nominal tool)")
     if ident.gauges:
         lines.append(
@@ -167,7 +165,7 @@ def summary(
             + ("  <- suspect" if p.suspect else "")
             for p in each
         ]
-    elif kind == "points" and data is not None and _spread(cal, data) < SMALL:
+    elif kind.fixed_points and data is not None and _spread(cal, data) < SMALL:
         lines.append(
             f"note: the points lie within {SMALL:.1f} m of each other (one placement of a fixture): the fit "
             "sees the arm around them only; record placements spread over where the robot works and "

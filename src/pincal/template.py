@@ -8,14 +8,8 @@ points. Comment lines (``#``) above the header say the units the values must be 
 
 from __future__ import annotations
 
+from .kinds import get_kind
 from .robots import Robot
-
-#: The measured columns of each kind of data.
-MEASURED = {
-    "position": ("x", "y", "z"),
-    "pose": ("x", "y", "z", "qw", "qx", "qy", "qz"),
-    "points": ("point",),
-}
 
 
 def csv_template(robot: Robot, kind: str = "position", units: str = "m", degrees: bool = False) -> str:
@@ -39,14 +33,15 @@ def csv_template(robot: Robot, kind: str = "position", units: str = "m", degrees
         f"# joint columns: the commanded joint values; revolute joints in {angle}"
         + (f"; prismatic joints ({', '.join(prismatic)}) in {length}" if prismatic else ""),
     ]
-    if kind == "points":
+    measure = get_kind(kind)
+    if measure.fixed_points:
         lines.append("# point: the name or number of the fixed point (socket) the tip is held at")
     else:
         lines.append(
             f"# x,y,z: the measured position of a point fixed on {robot.tip} (a reflector, a marker), "
             f"in the instrument's frame, in {length}"
         )
-    if kind == "pose":
+    if measure.orientation:
         lines.append("# qw,qx,qy,qz: the measured orientation (unit quaternion) in the instrument's frame")
-    lines.append(",".join((*robot.joint_names, *MEASURED[kind])))
+    lines.append(",".join((*robot.joint_names, *measure.columns)))
     return "\n".join(lines) + "\n"

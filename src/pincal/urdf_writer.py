@@ -142,7 +142,7 @@ def corrected_urdf(cal: Calibration, add_frame: str | None = None) -> bytes:
 def _ball_joint(root: etree._Element, cal: Calibration) -> etree._Element | None:
     """For fixed-point data, the fixed joint whose child is the tip link (it takes the ball's
     calibrated centre), else None."""
-    if cal.measurement.kind != "points":
+    if not cal.measurement.measure.fixed_points:
         return None
     for joint in root.findall("joint"):
         child = joint.find("child")
@@ -193,7 +193,7 @@ def _add_frame(root: etree._Element, tip: str, name: str, cal: Calibration) -> N
     etree.SubElement(joint, "child", link=name).tail = indent + "  "
     origin = etree.SubElement(joint, "origin")
     origin.tail = indent
-    placement = tool if cal.measurement.kind == "pose" else pin.SE3(np.eye(3), tool.translation)
+    placement = tool if cal.measurement.measure.tool_dof == 6 else pin.SE3(np.eye(3), tool.translation)
     if _ball_joint(root, cal) is not None:  # the tip link is the ball's centre already
         placement = pin.SE3.Identity()
     _set_origin(joint, placement)
@@ -204,7 +204,7 @@ def _add_frame(root: etree._Element, tip: str, name: str, cal: Calibration) -> N
 def sidecar(cal: Calibration, urdf_name: str) -> dict[str, Any]:
     """What the URDF cannot hold: the instrument registration and the tool."""
     _, reg, tool = cal.split()
-    ball = cal.measurement.kind == "points" and _ball_joint(_read(cal.robot), cal) is not None
+    ball = cal.measurement.measure.fixed_points and _ball_joint(_read(cal.robot), cal) is not None
     if ball:  # the corrected URDF's tip link is the ball's centre
         tool = pin.SE3.Identity()
 

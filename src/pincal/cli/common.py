@@ -18,6 +18,7 @@ from ..errors import DataError, ImplausibleError, OutputError
 from ..files import STDIN, output_target
 from ..fixed_points import parse_point_distances
 from ..inputs import input_named
+from ..kinds import get_kind
 from ..options import ROTATION_WEIGHT
 from ..plausibility import Verdict, judge_calibration
 from ..point_files import read_socket_folder
@@ -191,11 +192,11 @@ def check_applicable(args: argparse.Namespace, data: Dataset) -> None:
     silence (those of another kind, ``--pairs`` and ``--point-distance``, the fit refuses)."""
     kind = args.measure or data.measured
     ignored = []
-    if args.rotation_weight != ROTATION_WEIGHT and kind != "pose":
+    if args.rotation_weight != ROTATION_WEIGHT and not get_kind(kind).orientation:
         ignored.append("--rotation-weight (pose data only)")
     if args.quaternion_order != "wxyz" and not data.has_orientation:
         ignored.append("--quaternion-order (the data has no quaternion)")
-    if args.instrument_frame == "base" and kind in ("distance", "points"):
+    if args.instrument_frame == "base" and not get_kind(kind).registered:
         ignored.append(f"--instrument-frame base ({kind} data needs no registration)")
     ignored += unused_recording_options(args)
     if ignored:

@@ -73,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"residual: {found.residual.sentence()}; {found.residual.how}")
     if found.caveat():
         print(f"note: {found.caveat()}")
-    if args.plots is not None and result.baseline.measurement.kind != "distance":
+    if args.plots is not None and not result.baseline.measurement.measure.by_pairs:
         name = result.cause.extension.effect if result.cause else found.residual.verdict
         plot = args.plots / f"diagnose_{name}.png"
         check_outputs(args, [plot], {"data file": args.data, "input URDF": urdf_path(args.robot)})
