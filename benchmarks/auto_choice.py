@@ -15,7 +15,7 @@ unknown, 0.03 mm (3e-5 m) of Gaussian noise per coordinate, position data; model
    (``cal.choice.extension is None``) on any seed, i.e. 20 of 20.
 4. **Hidden effects** (``--effect-seeds`` seeds per robot and effect, default 5; 60 fitted
    poses, 200 held-out): the truth of part 2 with a joint compliance, an encoder scale or a gear
-   harmonic on the second joint, moving the tip by 0.3 mm RMS (:func:`pincal.simulation.hide_effect`),
+   harmonic on the second joint, moving the tip by 0.3 mm RMS (:func:`pincal.simulation.truth.hide_effect`),
    calibrated as ``pincal calibrate`` does by default (``extension="auto"``) and with
    ``--extend none``; the held-out RMS of each against the noise floor (0.03 mm × √3). Acceptance:
    the default is within 1.3 × the floor on every seed.
@@ -40,6 +40,8 @@ from __future__ import annotations
 
 import os
 
+import pincal.simulation.truth
+
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
@@ -53,8 +55,8 @@ from typing import Any  # noqa: E402
 import numpy as np  # noqa: E402
 
 import pincal  # noqa: E402
-from pincal.choice import choice_of  # noqa: E402
-from pincal.simulation import hide_effect  # noqa: E402
+from pincal.auto.choice import choice_of  # noqa: E402
+from pincal.simulation.truth import hide_effect  # noqa: E402
 
 #: Part 1: fitted and held-out poses.
 FIT_POSES, TEST_POSES = 150, 200
@@ -162,10 +164,16 @@ def hidden_effects(robot_name: str, seeds: int) -> dict[str, Any]:
             named = default.extension.label if default.extension is not None else None
             ratio = default.test_after.rms_mm / floor
             rows.append(
-                {"effect": ext.label, "seed": seed, "default_mm": default.test_after.rms_mm,
-                 "none_mm": rigid.test_after.rms_mm, "named": named, "ratio": ratio,
-                 "ok": ratio <= FLOOR_FACTOR}
-            )  # fmt: skip
+                {
+                    "effect": ext.label,
+                    "seed": seed,
+                    "default_mm": default.test_after.rms_mm,
+                    "none_mm": rigid.test_after.rms_mm,
+                    "named": named,
+                    "ratio": ratio,
+                    "ok": ratio <= FLOOR_FACTOR,
+                }
+            )
     return {"robot": robot_name, "floor_mm": floor, "rows": rows}
 
 

@@ -35,9 +35,9 @@ sys.path.insert(0, str(Path(__file__).parent))
 from real_data import load_panda, load_tiago_data, load_ur10  # noqa: E402
 
 import pincal  # noqa: E402
-from pincal.data import Dataset  # noqa: E402
-from pincal.outcome import outcome  # noqa: E402
-from pincal.urdf_writer import write_corrected_urdf  # noqa: E402
+from pincal.data.dataset import Dataset  # noqa: E402
+from pincal.export.urdf_writer import write_corrected_urdf  # noqa: E402
+from pincal.report.outcome import outcome  # noqa: E402
 
 
 def plain_rms_mm(urdf: Path, sidecar: dict[str, Any], test: Dataset) -> float:

@@ -45,12 +45,12 @@ from mukca_oracle import oracle, oracle_table  # noqa: E402
 from mukca_results import Pair, plot, protocol_rows, worse_pairs, write_json, write_page  # noqa: E402
 
 import pincal  # noqa: E402
-from pincal.diagnose import diagnose  # noqa: E402
-from pincal.evaluation import ErrorStats, evaluate  # noqa: E402
-from pincal.fixed_points import point_means  # noqa: E402
-from pincal.measurements import Problem  # noqa: E402
-from pincal.point_files import read_socket_folder  # noqa: E402
-from pincal.report import placements  # noqa: E402
+from pincal.auto.diagnose import diagnose  # noqa: E402
+from pincal.data.point_files import read_socket_folder  # noqa: E402
+from pincal.identify.evaluation import ErrorStats, evaluate  # noqa: E402
+from pincal.identify.fixed_points import point_means  # noqa: E402
+from pincal.identify.measurements import Problem  # noqa: E402
+from pincal.report.report import placements  # noqa: E402
 
 URDFS = {"panda": "panda.urdf", "kuka": "iiwa14.urdf", "dinova": "gen3lite.urdf"}
 DISTANCE = (("0", "1", 0.05),)  # [m] between the sockets

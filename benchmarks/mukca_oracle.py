@@ -2,7 +2,7 @@
 held-out placements (``benchmarks/mukca.py --oracle``).
 
 For each training placement, the calibration is repeated at every weight of
-:data:`pincal.prior.WEIGHTS` (the guard off: ``force_fit``), and judged on every other placement
+:data:`pincal.identify.prior.WEIGHTS` (the guard off: ``force_fit``), and judged on every other placement
 of the same robot. Two oracles then choose with the held-out figures, which no honest rule may:
 
 - the best single weight for the robot (the same weight for every training placement): the
@@ -26,9 +26,11 @@ import numpy as np
 from mukca_results import MUKCA_MEDIAN_MM
 
 import pincal
-from pincal.evaluation import evaluate
-from pincal.point_files import read_socket_folder
-from pincal.prior import WEIGHTS
+import pincal.identify.evaluation
+import pincal.identify.prior
+from pincal.data.point_files import read_socket_folder
+from pincal.identify.evaluation import evaluate
+from pincal.identify.prior import WEIGHTS
 
 #: Per-placement oracle only for robots with at most this many placements (options ** placements).
 EXHAUSTIVE = 4
@@ -97,7 +99,7 @@ def oracle(robot_dir: Path, urdf: Path) -> Oracle:
 
 
 def _mae(stats: object) -> float:
-    """The held-out MAE [mm] of an :class:`pincal.evaluation.ErrorStats`."""
+    """The held-out MAE [mm] of an :class:`pincal.identify.evaluation.ErrorStats`."""
     return float(getattr(stats, "point_mae_mm", 0.0) or 0.0)
 
 

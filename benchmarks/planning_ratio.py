@@ -32,8 +32,8 @@ import time
 import numpy as np
 
 import pincal
-from pincal.candidates import candidate_poses
-from pincal.planning import plan_poses
+from pincal.planning.candidates import candidate_poses
+from pincal.planning.plan import plan_poses
 from pincal.threads import limited
 
 NOISE = 3e-5  # 1σ per coordinate [m]
@@ -44,13 +44,13 @@ CUBE = (np.array([0.25, -0.15, 0.15]), np.array([0.55, 0.15, 0.45]))  # the task
 NAMED: list[bool] = []
 
 
-def truth(robot: pincal.Robot, seed: int) -> pincal.TrueRobot:
+def truth(robot: pincal.Robot, seed: int) -> pincal.simulation.truth.TrueRobot:
     """The seeded true robot of the issue's simulation."""
     return pincal.random_truth(robot, seed, tool_distance=(0.05, 0.12))
 
 
 def model_error(
-    robot: pincal.Robot, true: pincal.TrueRobot, q: np.ndarray, judge: np.ndarray, seed: int
+    robot: pincal.Robot, true: pincal.simulation.truth.TrueRobot, q: np.ndarray, judge: np.ndarray, seed: int
 ) -> float:
     """Noise-free held-out RMS [mm] of the robot calibrated on poses ``q``."""
     clean = true.measure(judge, 0.0, None, 0)
@@ -75,7 +75,12 @@ def summary(label: str, ratios: list[float]) -> str:
 
 
 def errors(
-    robot: pincal.Robot, true: pincal.TrueRobot, q: np.ndarray, judge: np.ndarray, seed: int, draws: int
+    robot: pincal.Robot,
+    true: pincal.simulation.truth.TrueRobot,
+    q: np.ndarray,
+    judge: np.ndarray,
+    seed: int,
+    draws: int,
 ) -> np.ndarray:
     """Noise-free held-out RMS [mm] of the robot calibrated on poses ``q``, for one noise draw
     (the tables' protocol) or ``draws`` of them."""

@@ -10,10 +10,10 @@ from dataclasses import replace
 from pathlib import Path
 
 import pincal
-from pincal.diagnose import diagnose
-from pincal.effects import Extension
-from pincal.plots import plot_diagnosis
-from pincal.simulation import hide_effect
+from pincal.auto.diagnose import diagnose
+from pincal.kinematics.effects import Extension
+from pincal.report.plots import plot_diagnosis
+from pincal.simulation.truth import hide_effect
 
 
 def main() -> None:

@@ -4,7 +4,7 @@ For each dataset (layouts in ``DATASETS_DIR/SOURCES.md``; nothing is copied from
 the training part, judges on the held-out part and prints one table: dataset, model, identified
 parameters (model, registration and tool), RMS on the fitted poses, held-out RMS, the anchor's
 published figure and the median wall time of the identification step (:func:`pincal.calibrate`,
-plus :func:`pincal.selection.select_parameters` for the selected models). Then what
+plus :func:`pincal.auto.selection.select_parameters` for the selected models). Then what
 ``diagnose`` names on each, the selections, and a scaling run of identification time against
 the number of poses and of joints, saved as a PNG.
 
@@ -22,7 +22,7 @@ the number of poses and of joints, saved as a PNG.
 - ``gao2013``: Table 2 of Gao et al. 2013 (``--gao-data``), distances between the 28 tracker
   points, POE (the paper's model), 7-fold cross-validation over poses.
 
-"Selected" models fit only the parameters :func:`pincal.selection.select_parameters` chooses by
+"Selected" models fit only the parameters :func:`pincal.auto.selection.select_parameters` chooses by
 leave-one-out cross-validation on the fitted poses alone. Their held-out figure for the
 cross-validated datasets is *nested*: the selection is re-run inside every fold.
 
@@ -38,6 +38,8 @@ Usage::
 from __future__ import annotations
 
 import os
+
+import pincal.auto.selection
 
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
@@ -58,11 +60,11 @@ from identification_scaling import FIGURE, TIAGO_TIP, load_tiago, plot, scaling 
 from markdown_page import command_line, table, text_block, write_page  # noqa: E402
 
 import pincal  # noqa: E402
-from pincal.choice import choice_of  # noqa: E402
-from pincal.data import Dataset, atomic_write, read_table, write_csv  # noqa: E402
-from pincal.outliers import THRESHOLD  # noqa: E402
-from pincal.registration import quaternions  # noqa: E402
-from pincal.summary_table import choice_lines  # noqa: E402
+from pincal.auto.choice import choice_of  # noqa: E402
+from pincal.data.dataset import Dataset, atomic_write, read_table, write_csv  # noqa: E402
+from pincal.identify.outliers import THRESHOLD  # noqa: E402
+from pincal.identify.registration import quaternions  # noqa: E402
+from pincal.report.summary_table import choice_lines  # noqa: E402
 
 T = TypeVar("T")
 #: FIGAROH on TIAGo (train / validation RMS [mm]) and its identification step [s], this machine kind.
@@ -172,8 +174,12 @@ def bench_tiago(folder: Path, repeat: int, out: list[str]) -> tuple[list[Row], d
     base = f"pincal calibrate {folder}/tiago_48_schunk.urdf train.csv --tip {TIAGO_TIP} --test validation.csv"
     runs: list[tuple[str, dict[str, Any], str, str]] = [
         ("registration only", dict(params=[]), "registration", "(API: params=[])"),
-        ("offsets", dict(model="offsets", params="all"), "offsets",
-         "--model offsets --params all --extend none"),
+        (
+            "offsets",
+            dict(model="offsets", params="all"),
+            "offsets",
+            "--model offsets --params all --extend none",
+        ),
         ("placements, all", dict(params="all"), "full", "--params all --extend none"),
         ("placements, auto", {}, "full", "--extend none"),
         ("poe, auto", dict(model="poe"), "full", "--model poe --extend none"),
@@ -188,9 +194,18 @@ def bench_tiago(folder: Path, repeat: int, out: list[str]) -> tuple[list[Row], d
         timing[label] = seconds
         assert cal.test_after is not None
         rows.append(
-            Row(name, label, cal.identifiability.n_identifiable, cal.train_after.rms_mm,
-                cal.test_after.rms_mm, "validation", fig.get(anchor, "-"), seconds, f"{base} {flags}".strip())
-        )  # fmt: skip
+            Row(
+                name,
+                label,
+                cal.identifiability.n_identifiable,
+                cal.train_after.rms_mm,
+                cal.test_after.rms_mm,
+                "validation",
+                fig.get(anchor, "-"),
+                seconds,
+                f"{base} {flags}".strip(),
+            )
+        )
         if label.startswith("placements, auto"):
             choice_notes(cal, train, out, label)
             details[label] = pincal.report_dict(cal, train)
@@ -248,24 +263,66 @@ def bench_cv(
         assert choice is not None and choice.nested is not None
         flags = f"{base.replace(f'--model {model}', f'--model {mdl}')} --nested yes --folds {folds} {flags}"
         held = choice.nested.after
-        rows.append(Row(name, label, cal.identifiability.n_identifiable, cal.train_after.rms_mm, held.rms_mm,
-                        f"{by}, nested", anchor, seconds, flags.strip()))  # fmt: skip
+        rows.append(
+            Row(
+                name,
+                label,
+                cal.identifiability.n_identifiable,
+                cal.train_after.rms_mm,
+                held.rms_mm,
+                f"{by}, nested",
+                anchor,
+                seconds,
+                flags.strip(),
+            )
+        )
         details[label] = {"held_out": held.to_dict(), "train": cal.train_after.to_dict()}
         if label.endswith("auto *"):
             choice_notes(cal, data, out, label)
     diag_folds = 7 if measure == "distance" else 5
-    ext, seconds = timed(1, pincal.calibrate, robot, data, model, measure, params="auto", extension="auto",
-                         outliers=THRESHOLD, folds=diag_folds)  # fmt: skip
+    ext, seconds = timed(
+        1,
+        pincal.calibrate,
+        robot,
+        data,
+        model,
+        measure,
+        params="auto",
+        extension="auto",
+        outliers=THRESHOLD,
+        folds=diag_folds,
+    )
     assert ext.choice is not None  # its choice is printed with the default row's (the same call)
     if ext.extension is not None:
-        chosen = pincal.cross_validate(robot, data, model, measure, diag_folds, params=ext.choice.params,
-                                       extension=ext.extension, partial=True)  # fmt: skip
+        chosen = pincal.auto.crossval.cross_validate(
+            robot,
+            data,
+            model,
+            measure,
+            diag_folds,
+            params=ext.choice.params,
+            extension=ext.extension,
+            partial=True,
+        )
         held_by = f"{diag_folds}-fold, chosen model"
-        rows.append(Row(name, f"{model}, auto + {ext.extension.label}", ext.identifiability.n_identifiable,
-                        ext.train_after.rms_mm, chosen.after.rms_mm, held_by, anchor,
-                        seconds, f"{base} --extend auto --folds {diag_folds}"))  # fmt: skip
-        details["extended"] = {"cause": ext.extension.label, "cv": chosen.after.to_dict(),
-                               "cv_urdf": chosen.urdf.to_dict()}  # fmt: skip
+        rows.append(
+            Row(
+                name,
+                f"{model}, auto + {ext.extension.label}",
+                ext.identifiability.n_identifiable,
+                ext.train_after.rms_mm,
+                chosen.after.rms_mm,
+                held_by,
+                anchor,
+                seconds,
+                f"{base} --extend auto --folds {diag_folds}",
+            )
+        )
+        details["extended"] = {
+            "cause": ext.extension.label,
+            "cv": chosen.after.to_dict(),
+            "cv_urdf": chosen.urdf.to_dict(),
+        }
         if measure == "distance":
             urdf, after = chosen.urdf.mean_mm, chosen.after.mean_mm
             out.append(
@@ -352,9 +409,17 @@ def main(argv: list[str] | None = None) -> None:
     exported = args.export or Path("EXPORT")
     robot, data = load_ur10(args.datasets / "ur10_camera")
     new, results["ur10_camera"] = bench_cv(
-        "ur10_camera", robot, data, "placements", None, len(data), args.repeat, "none published", sections[1],
+        "ur10_camera",
+        robot,
+        data,
+        "placements",
+        None,
+        len(data),
+        args.repeat,
+        "none published",
+        sections[1],
         f"pincal calibrate ur10 {exported}/ur10_camera.csv --tip wrist_3_link",
-    )  # fmt: skip
+    )
     rows += new
     sections[1].append(
         "  a UR10e's nominal d4 and d5 exceed the UR10's by "
@@ -364,16 +429,33 @@ def main(argv: list[str] | None = None) -> None:
     export(args.export, "ur10_camera.csv", data)
     robot, data = load_panda(args.datasets / "panda_eye_in_hand")
     new, results["panda_eye_in_hand"] = bench_cv(
-        "panda_eye_in_hand", robot, data, "placements", None, 10, args.repeat, "none published", sections[2],
+        "panda_eye_in_hand",
+        robot,
+        data,
+        "placements",
+        None,
+        10,
+        args.repeat,
+        "none published",
+        sections[2],
         f"pincal calibrate panda {exported}/panda_eye_in_hand.csv --tip panda_link8",
-    )  # fmt: skip
+    )
     rows += new
     export(args.export, "panda_eye_in_hand.csv", data)
     robot, data, source = load_gao(gao_path)
     new, results["gao2013"] = bench_cv(
-        "gao2013", robot, data, "poe", "distance", 7, args.repeat, "paper: 3.5x on URDF", sections[3],
-        f"pincal calibrate mrres5 {exported}/gao2013.csv", models=(),
-    )  # fmt: skip
+        "gao2013",
+        robot,
+        data,
+        "poe",
+        "distance",
+        7,
+        args.repeat,
+        "paper: 3.5x on URDF",
+        sections[3],
+        f"pincal calibrate mrres5 {exported}/gao2013.csv",
+        models=(),
+    )
     rows += new
     export(args.export, "gao2013.csv", data)
     notes = [line for section in sections for line in section]

@@ -11,7 +11,7 @@ Prints, with one BLAS thread (pincal's default) unless said otherwise:
    against its lower bound: a Python loop of Pinocchio's ``forwardKinematics`` +
    ``computeFrameJacobian`` over the same poses plus NumPy's QR of a matrix the size of the
    fitted Jacobian;
-3. ``pincal.diagnose.diagnose`` with every candidate effect and 5 folds;
+3. ``pincal.auto.diagnose.diagnose`` with every candidate effect and 5 folds;
 4. where a second BLAS thread starts to pay off;
 5. the command line: ``pincal --help`` CPU time, and ``pincal calibrate`` on 100 poses in the
    default environment against ``PINCAL_THREADS=1``;
@@ -43,8 +43,8 @@ import numpy as np
 import pinocchio as pin
 
 import pincal
-import pincal.diagnose
-from pincal.solver import identifiable_set, register, set_up, solve
+import pincal.auto.diagnose
+from pincal.identify.solver import identifiable_set, register, set_up, solve
 from pincal.threads import blas_threads
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -82,8 +82,10 @@ def lower_bound(robot: pincal.Robot, data: pincal.Dataset, shape: tuple[int, int
 def identification(sizes: tuple[int, ...]) -> None:
     """Section 1 and 2: calibrate's time, and the LM iteration against its bound."""
     print("\n## Identification: pincal.calibrate(robot, data, 'placements'), every identifiable parameter")
-    print(f"{'case':16s} {'poses':>7s} {'calibrate [s]':>14s} {'iterations':>10s} {'per iter [ms]':>14s}"
-          f" {'bound [ms]':>11s} {'ratio':>6s}")  # fmt: skip
+    print(
+        f"{'case':16s} {'poses':>7s} {'calibrate [s]':>14s} {'iterations':>10s} {'per iter [ms]':>14s}"
+        f" {'bound [ms]':>11s} {'ratio':>6s}"
+    )
     for name, kind in CASES:
         for n in sizes:
             robot, data = experiment(name, kind, n)
@@ -102,8 +104,10 @@ def identification(sizes: tuple[int, ...]) -> None:
             shape = (len(setup.problem.residuals(start)), int(free.sum()))
             bound = lower_bound(robot, data, shape, repeat)
             ratio = per_iteration / bound
-            print(f"{name + ' ' + kind:16s} {n:7d} {seconds:14.3f} {result.njev:10d}"
-                  f" {per_iteration * 1e3:14.2f} {bound * 1e3:11.2f} {ratio:6.2f}")  # fmt: skip
+            print(
+                f"{name + ' ' + kind:16s} {n:7d} {seconds:14.3f} {result.njev:10d}"
+                f" {per_iteration * 1e3:14.2f} {bound * 1e3:11.2f} {ratio:6.2f}"
+            )
 
 
 def default_call(sizes: tuple[int, ...]) -> None:
@@ -128,10 +132,10 @@ def default_call(sizes: tuple[int, ...]) -> None:
 
 def diagnosis(cases: tuple[tuple[str, str, int], ...]) -> None:
     """Section 3: the whole diagnosis, every candidate."""
-    print("\n## Diagnosis: pincal.diagnose.diagnose(robot, data), every candidate, 5 folds")
+    print("\n## Diagnosis: pincal.auto.diagnose.diagnose(robot, data), every candidate, 5 folds")
     for name, kind, n in cases:
         robot, data = experiment(name, kind, n)
-        answer, seconds = timed(3, pincal.diagnose.diagnose, robot, data, measure=kind)
+        answer, seconds = timed(3, pincal.auto.diagnose.diagnose, robot, data, measure=kind)
         print(f"{name} {kind}, {n} poses: {seconds:.2f} s for {len(answer.candidates)} candidates")
         print(f"  {answer.summary()}")
 
@@ -177,8 +181,10 @@ def command_line(repeat: int) -> None:
         ):
             walls[label] = statistics.median(process_time(command, env)[0] for _ in range(repeat))
         ratio = walls["default environment"] / walls["PINCAL_THREADS=1"]
-        print(f"pincal calibrate ur5 (100 poses): default environment {walls['default environment']:.2f} s, "
-              f"PINCAL_THREADS=1 {walls['PINCAL_THREADS=1']:.2f} s ({ratio:.2f}x)")  # fmt: skip
+        print(
+            f"pincal calibrate ur5 (100 poses): default environment {walls['default environment']:.2f} s, "
+            f"PINCAL_THREADS=1 {walls['PINCAL_THREADS=1']:.2f} s ({ratio:.2f}x)"
+        )
 
 
 def against_figaroh(folder: Path, repeat: int) -> None:

@@ -1,22 +1,22 @@
 """The audit of ``verdict_audit.py`` on pincal's OWN simulator (issue 30).
 
 The same cases, references, runs, table and acceptance as ``benchmarks/verdict_audit.py`` (imported
-from it); only the truth differs: it is drawn with :mod:`pincal.simulation`.
+from it); only the truth differs: it is drawn with :mod:`pincal.simulation.truth`.
 
 Simulation (per robot, seed and effect):
 
 * the robot is ``pincal.load_robot("ur5")`` or ``("panda")`` (pincal's bundled URDF and default tip);
-* the truth is :func:`pincal.simulation.random_truth`: 0.5 mm and 0.5 mrad std per axis on every
+* the truth is :func:`pincal.simulation.truth.random_truth`: 0.5 mm and 0.5 mrad std per axis on every
   joint origin, 1 mrad std on every joint zero, the instrument 2-4 m away at a random orientation,
   the measured point ~5 cm std per coordinate from the tip frame;
 * commands from ``Robot.random_configurations`` (the outer 5 % of each range avoided);
-* measured point = the :class:`~pincal.simulation.TrueRobot`'s target position (pincal's chain
+* measured point = the :class:`~pincal.simulation.truth.TrueRobot`'s target position (pincal's chain
   kinematics) at the reached angles, + the effect, + Gaussian noise (``--sigma`` mm per axis).
 
 The effects are ``verdict_audit.make_effect``'s, evaluated on this truth: joint errors through the
 TrueRobot's forward kinematics at q + error (sin3, cubic, the pair), point displacements from its
 joint origins and tip (bending) or along the pose order (drift), gravity torques from
-:func:`pincal.effects.gravity_torques` (the URDF's inertias). Each is scaled so that its RMS
+:func:`pincal.kinematics.effects.gravity_torques` (the URDF's inertias). Each is scaled so that its RMS
 displacement of the measured point is M x the noise floor (sqrt(3) * sigma).
 
 The linearised references (``rigidR``, ``listR``) are ``verdict_audit``'s, computed on a Pinocchio
@@ -52,9 +52,11 @@ from verdict_audit import (
 )
 
 import pincal
-from pincal.effects import gravity_torques
-from pincal.kinematics import Frames, forward
-from pincal.simulation import TrueRobot, random_truth
+import pincal.kinematics.effects
+import pincal.simulation.truth
+from pincal.kinematics.chain import Frames, forward
+from pincal.kinematics.effects import gravity_torques
+from pincal.simulation.truth import TrueRobot, random_truth
 
 AGREE_M = 1e-9  # [m] the Pinocchio copy of the truth must give the TrueRobot's points within this
 
@@ -74,7 +76,7 @@ class OwnRobot(Robot):
 
 @dataclass
 class OwnTruth(Truth):
-    """A :class:`~pincal.simulation.TrueRobot` behind the audit's :class:`Truth`: its points, joint
+    """A :class:`~pincal.simulation.truth.TrueRobot` behind the audit's :class:`Truth`: its points, joint
     origins and tip come from pincal's kinematics; the Pinocchio model (the TrueRobot's placements)
     serves only the references' perturbed models."""
 
@@ -126,7 +128,8 @@ class OwnTruth(Truth):
         return frames.tip_translation + frames.tip_rotation @ self.tool
 
     def gravity(self, q: np.ndarray) -> np.ndarray:
-        """Gravity torques (N, n) [N·m] from the URDF's inertias (:func:`pincal.effects.gravity_torques`)."""
+        """Gravity torques (N, n) [N·m] from the URDF's inertias
+        (:func:`pincal.kinematics.effects.gravity_torques`)."""
         return gravity_torques(self._true.robot, q)
 
     def joint_origins(self, q: np.ndarray, joint_id: int) -> np.ndarray:

@@ -25,7 +25,8 @@ from typing import Any
 import pytest
 
 import pincal
-from pincal import urdf_writer
+import pincal.export.urdf_writer
+from pincal.export import urdf_writer
 
 #: The bundled robots the property tests run on.
 ROBOT_NAMES = ("ur5", "ur10", "panda", "z1", "mrres5", "zu3")
@@ -85,7 +86,7 @@ def urdfdom_error(document: bytes | Path) -> str | None:
 
 @pytest.fixture(scope="session", autouse=True)
 def _urdfdom_checks_corrected_urdfs() -> Iterator[None]:
-    """While the tests run, every document :func:`pincal.urdf_writer.corrected_urdf` returns
+    """While the tests run, every document :func:`pincal.export.urdf_writer.corrected_urdf` returns
     (what ``write_corrected_urdf`` writes) must pass ``check_urdf``, if installed."""
     if CHECK_URDF is None:
         yield

@@ -1,5 +1,5 @@
 """Central finite differences of a model's tip pose, the reference the analytic Jacobians of
-:func:`pincal.tip_jacobian` are checked against (test_jacobians, test_rounds)."""
+:func:`pincal.kinematics.chain.tip_jacobian` are checked against (test_jacobians, test_rounds)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,9 @@ import pinocchio as pin
 import pincal
 
 
-def tip_jacobian_fd(model: pincal.Model, x: np.ndarray, q: np.ndarray, step: float = 1e-6) -> np.ndarray:
+def tip_jacobian_fd(
+    model: pincal.kinematics.models.Model, x: np.ndarray, q: np.ndarray, step: float = 1e-6
+) -> np.ndarray:
     """(N, 6, n) derivative of the tip's position [m] and orientation (log3 of the rotation
     between the two sides, [rad]) at configurations ``q`` with respect to the parameters at
     ``x``, by central differences of ``step`` per parameter."""
@@ -17,8 +19,8 @@ def tip_jacobian_fd(model: pincal.Model, x: np.ndarray, q: np.ndarray, step: flo
     for k in range(model.n_params):
         dx = np.zeros(model.n_params)
         dx[k] = step
-        plus = pincal.forward(model.chain(x + dx), q)
-        minus = pincal.forward(model.chain(x - dx), q)
+        plus = pincal.kinematics.chain.forward(model.chain(x + dx), q)
+        minus = pincal.kinematics.chain.forward(model.chain(x - dx), q)
         jac[:, :3, k] = (plus.tip_translation - minus.tip_translation) / (2 * step)
         rel = plus.tip_rotation @ np.transpose(minus.tip_rotation, (0, 2, 1))
         jac[:, 3:, k] = np.array([pin.log3(r) for r in rel]) / (2 * step)

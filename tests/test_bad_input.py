@@ -26,8 +26,10 @@ import numpy as np
 import pytest
 
 import pincal
+import pincal.robot.robots
+import pincal.tool.tcp
 from pincal.cli import main
-from pincal.ur_frames import JOINTS
+from pincal.robot.ur_frames import JOINTS
 
 N_FIT = 30
 N_TEST = 20
@@ -384,7 +386,7 @@ def test_huge_numbers_warn_nothing(
 ) -> None:
     """Numbers that overflow when squared: exit 0, or 2 with one error line, and no numpy warning
     (which the command line would print as more stderr lines)."""
-    text = pincal.robots.bundled_urdf("ur5").read_text(encoding="utf-8")
+    text = pincal.robot.robots.bundled_urdf("ur5").read_text(encoding="utf-8")
     urdf = tmp_path / "robot.urdf"
     if where == "urdf-origin":
         text = re.sub(r'xyz="[^"]*"', 'xyz="1e300 0 0"', text, count=1)
@@ -455,7 +457,7 @@ def test_malformed_urdf_is_one_error_line(
 ) -> None:
     """A damaged URDF: one error line (stderr at the file-descriptor level) that names the cause."""
     pattern, replacement, word = MALFORMED_URDFS[case]
-    text = pincal.robots.bundled_urdf("ur5").read_text(encoding="utf-8")
+    text = pincal.robot.robots.bundled_urdf("ur5").read_text(encoding="utf-8")
     urdf = tmp_path / "robot.urdf"
     text = re.sub(pattern, replacement, text, count=1)
     urdf.write_text(text, encoding="utf-8")
@@ -514,7 +516,7 @@ def test_calibrate_output_for_tip_without_joints_is_refused(
 def test_default_tip_of_a_urdf_path_is_the_end_of_the_arm(
     capfd: pytest.CaptureFixture[str], tmp_path: Path
 ) -> None:
-    text = pincal.robots.bundled_urdf("ur5").read_text(encoding="utf-8")
+    text = pincal.robot.robots.bundled_urdf("ur5").read_text(encoding="utf-8")
     urdf = tmp_path / "robot.urdf"
     urdf.write_text(text.replace('name="base_link-base_fixed_joint"', 'name="x"'), encoding="utf-8")
     run = _run(capfd, "twists", urdf)
@@ -768,7 +770,7 @@ def test_outputs_naming_inputs_are_refused_even_with_force(
     data = _write(tmp_path / "data.csv", sim.lines)
     test = _write(tmp_path / "test.csv", sim.test_lines)
     robot = tmp_path / "robot.urdf"
-    robot.write_bytes(pincal.robots.bundled_urdf("ur5").read_bytes())
+    robot.write_bytes(pincal.robot.robots.bundled_urdf("ur5").read_bytes())
     (tmp_path / "sub").mkdir()
     (tmp_path / "link.json").symlink_to(data)
     base = ["calibrate", robot, data, "--test", test, "--model", "offsets", "--force"]
@@ -785,9 +787,9 @@ def test_outputs_naming_inputs_are_refused_even_with_force(
     _refused_as_input(line, data)
     # A bundled robot's URDF is an input too.
     line = _assert_refused(
-        capfd, tmp_path, ["calibrate", "ur5", data, "-o", pincal.robots.bundled_urdf("ur5")]
+        capfd, tmp_path, ["calibrate", "ur5", data, "-o", pincal.robot.robots.bundled_urdf("ur5")]
     )
-    _refused_as_input(line, pincal.robots.bundled_urdf("ur5"))
+    _refused_as_input(line, pincal.robot.robots.bundled_urdf("ur5"))
 
 
 def _refused_as_input(line: str, output: Path) -> None:
@@ -860,7 +862,7 @@ def _tcp_lines(n: int = 6, header: str = "x,y,z,a,b,c") -> list[str]:
     """Flange poses [mm, deg] touching one point with a 150 mm tool (R = Rz(a) Ry(b) Rx(c))."""
     rng = np.random.default_rng(1)
     abc = rng.uniform(-40.0, 40.0, (n, 3))
-    rot = pincal.tool.euler_zyx(*np.deg2rad(abc).T)
+    rot = pincal.tool.tcp.euler_zyx(*np.deg2rad(abc).T)
     pos = np.array([800.0, 100.0, 300.0]) - rot @ np.array([10.0, -20.0, 150.0])
     return [header, *(",".join(repr(float(v)) for v in row) for row in np.hstack([pos, abc]))]
 
@@ -994,7 +996,7 @@ def _hostile_urdf(folder: Path, doctype: str) -> tuple[Path, Path]:
     the text of an element (where an entity-resolving parser would put the secret file's text)."""
     secret = folder / "secret.txt"
     secret.write_text(SECRET + "\n", encoding="utf-8")
-    text = pincal.robots.bundled_urdf("ur5").read_text(encoding="utf-8")
+    text = pincal.robot.robots.bundled_urdf("ur5").read_text(encoding="utf-8")
     declaration = text.index("?>") + 2
     body = text[declaration:]
     start = body.index("<robot")
@@ -1076,7 +1078,7 @@ def test_hostile_urdf_is_refused(
 
 def test_plain_doctype_is_accepted(capfd: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     """A DOCTYPE that declares nothing cannot read anything: the URDF loads."""
-    text = pincal.robots.bundled_urdf("ur5").read_text(encoding="utf-8")
+    text = pincal.robot.robots.bundled_urdf("ur5").read_text(encoding="utf-8")
     declaration = text.index("?>") + 2
     urdf = tmp_path / "doctype.urdf"
     urdf.write_text(text[:declaration] + "\n<!DOCTYPE robot>" + text[declaration:], encoding="utf-8")
@@ -1137,7 +1139,7 @@ def test_mesh_paths_outside_the_urdf_folder_are_not_opened(
         "../outside/rel_mesh.stl",
         "../../../../../../../../etc/passwd",
     ]
-    text = pincal.robots.bundled_urdf("ur5").read_text(encoding="utf-8")
+    text = pincal.robot.robots.bundled_urdf("ur5").read_text(encoding="utf-8")
     meshes = re.findall(r'filename="(package://[^"]+)"', text)
     assert meshes
     for k, mesh in enumerate(meshes):

@@ -1,4 +1,4 @@
-"""Tests of ``params="auto"`` and ``extension="auto"`` (:mod:`pincal.choice`), in the API and in
+"""Tests of ``params="auto"`` and ``extension="auto"`` (:mod:`pincal.auto.choice`), in the API and in
 ``pincal calibrate``, which must be the same code path.
 
 - Few poses, a truth wrong in a few parameters: ``auto`` fits a subset; the parameters left out
@@ -23,12 +23,12 @@ import numpy as np
 import pytest
 
 import pincal
-from pincal.choice import NESTED_MAX_POSES
+from pincal.auto.choice import NESTED_MAX_POSES
 from pincal.cli import main
-from pincal.effects import Extension
-from pincal.models import PlacementsModel
-from pincal.simulation import TrueRobot, hide_effect
-from pincal.summary_table import OFFSETS_CAUSE
+from pincal.kinematics.effects import Extension
+from pincal.kinematics.models import PlacementsModel
+from pincal.report.summary_table import OFFSETS_CAUSE
+from pincal.simulation.truth import TrueRobot, hide_effect
 
 NOISE = 3e-5  # 1σ of each measured coordinate [m]
 
@@ -160,7 +160,7 @@ def test_nested_equals_refitting_without_each_fold(get_robot: Callable[[str], pi
     fit, _ = sparse_truth(robot, 30, seed=9)
     cal = pincal.calibrate(robot, fit, params="auto", nested=True, folds=3)
     assert cal.choice is not None and cal.choice.nested is not None
-    by_hand = pincal.cross_validate(robot, fit, folds=3, params="auto")
+    by_hand = pincal.auto.crossval.cross_validate(robot, fit, folds=3, params="auto")
     assert cal.choice.nested.after.rms_mm == pytest.approx(by_hand.after.rms_mm, rel=1e-9)
     first = by_hand.calibrations[0].choice
     assert first is not None and first.selection is not None  # each fold chose on its own poses

@@ -19,6 +19,7 @@ import pinocchio as pin
 import pytest
 
 import pincal
+import pincal.robot.robots
 from pincal.cli import main
 
 N_FIT = 70
@@ -64,7 +65,7 @@ def _concat(a: pincal.Dataset, b: pincal.Dataset) -> pincal.Dataset:
     return pincal.Dataset(a.joint_names, np.vstack([a.q, b.q]), np.vstack([a.points, b.points]))
 
 
-def _write_experiment(folder: Path, truth: pincal.TrueRobot | None = None) -> Files:
+def _write_experiment(folder: Path, truth: pincal.simulation.truth.TrueRobot | None = None) -> Files:
     """Simulate the UR5 (seed 0) and write all, fitted and held-out poses as CSV in mm."""
     robot = pincal.load_robot("ur5")
     _, fit, test = pincal.simulate(robot, N_FIT, N_TEST, seed=0, truth=truth)
@@ -395,7 +396,7 @@ def test_calibrate_unusable_input(
     args, edit, fragment = ERROR_CASES[case]
     data = files.all if edit is None else _edited_csv(files.all, tmp_path / "data.csv", edit)
     before = data.read_bytes()
-    urdf = pincal.robots.bundled_urdf("ur5")
+    urdf = pincal.robot.robots.bundled_urdf("ur5")
     urdf_before = urdf.read_bytes()
     argv = [a.format(data=data, tmp=tmp_path, urdf=urdf) for a in args]
     report = tmp_path / "r.json"

@@ -15,7 +15,7 @@ import pytest
 
 import pincal
 from pincal.cli import main
-from pincal.data import read_table
+from pincal.data.dataset import read_table
 
 
 def _run(capsys: pytest.CaptureFixture[str], *args: str | Path) -> tuple[int, str, str]:
@@ -54,7 +54,7 @@ def test_plan_too_few_poses_is_refused(capsys: pytest.CaptureFixture[str], tmp_p
 
 
 @pytest.fixture(scope="module")
-def calibration(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, pincal.TrueRobot]:
+def calibration(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, pincal.simulation.truth.TrueRobot]:
     """A ur5 calibrated from 60 simulated poses through the CLI, and its simulated truth."""
     folder = tmp_path_factory.mktemp("cal")
     robot = pincal.load_robot("ur5")
@@ -65,7 +65,9 @@ def calibration(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, pincal.
 
 
 def test_compensate_reaches_nominal_targets_and_names_failed_rows(
-    capsys: pytest.CaptureFixture[str], tmp_path: Path, calibration: tuple[Path, pincal.TrueRobot]
+    capsys: pytest.CaptureFixture[str],
+    tmp_path: Path,
+    calibration: tuple[Path, pincal.simulation.truth.TrueRobot],
 ) -> None:
     urdf, _ = calibration
     nominal = pincal.load_robot("ur5")
@@ -91,7 +93,9 @@ def test_compensate_reaches_nominal_targets_and_names_failed_rows(
 
 
 def test_compensate_exits_2_when_no_row_can_be(
-    capsys: pytest.CaptureFixture[str], tmp_path: Path, calibration: tuple[Path, pincal.TrueRobot]
+    capsys: pytest.CaptureFixture[str],
+    tmp_path: Path,
+    calibration: tuple[Path, pincal.simulation.truth.TrueRobot],
 ) -> None:
     urdf, _ = calibration
     nominal = pincal.load_robot("ur5")
@@ -104,7 +108,9 @@ def test_compensate_exits_2_when_no_row_can_be(
 
 
 def test_compensate_refuses_to_overwrite_its_inputs(
-    capsys: pytest.CaptureFixture[str], tmp_path: Path, calibration: tuple[Path, pincal.TrueRobot]
+    capsys: pytest.CaptureFixture[str],
+    tmp_path: Path,
+    calibration: tuple[Path, pincal.simulation.truth.TrueRobot],
 ) -> None:
     urdf, _ = calibration
     nominal = pincal.load_robot("ur5")

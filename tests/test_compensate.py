@@ -16,18 +16,11 @@ import numpy as np
 import pytest
 
 import pincal
-from pincal import (
-    CalibratedRobot,
-    Compensation,
-    Targets,
-    compensate_program,
-    load_calibration,
-    read_program,
-    write_program,
-)
-from pincal.data import read_table
-from pincal.planning import candidate_poses, plan_poses
-from pincal.simulation import hide_effect
+from pincal import CalibratedRobot, Compensation, compensate_program, load_calibration
+from pincal.data.dataset import Targets, read_program, read_table
+from pincal.export.compensate import write_program
+from pincal.planning.plan import candidate_poses, plan_poses
+from pincal.simulation.truth import hide_effect
 
 #: (robot, model, measure, hidden effect identified with the geometry)
 CASES = {
@@ -38,7 +31,7 @@ N_PROGRAM = 200
 SEEDS = (0, 1, 2)
 
 
-def _true_tool(truth: pincal.TrueRobot, cal: CalibratedRobot, q: np.ndarray) -> np.ndarray:
+def _true_tool(truth: pincal.simulation.truth.TrueRobot, cal: CalibratedRobot, q: np.ndarray) -> np.ndarray:
     """Where the true robot puts the measured point, in the calibration's base frame (N, 3) [m]."""
     reg = cal.instrument_T_base
     assert reg is not None

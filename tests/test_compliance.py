@@ -19,8 +19,9 @@ import numpy as np
 import pytest
 
 import pincal
-from pincal.diagnose import diagnose
-from pincal.effects import PLAUSIBLE_DEFLECTION, Extension, compliance_stiffness, gravity_torques
+import pincal.kinematics.effects
+from pincal.auto.diagnose import diagnose
+from pincal.kinematics.effects import PLAUSIBLE_DEFLECTION, Extension, compliance_stiffness, gravity_torques
 
 NOISE = 3e-5  # 1σ of each measured coordinate [m]
 N_POSES = 80
@@ -53,7 +54,7 @@ def elastic_data(robot: pincal.Robot, sag: float, seed: int = SEED) -> tuple[pin
     return pincal.Dataset(robot.joint_names, q_motor, points), float(k)
 
 
-def identified(robot: pincal.Robot, data: pincal.Dataset) -> pincal.effects.Stiffness:
+def identified(robot: pincal.Robot, data: pincal.Dataset) -> pincal.kinematics.effects.Stiffness:
     """The compliance of ``JOINT`` identified with the geometry, read as a stiffness."""
     ext = Extension(robot, "joint_compliance", JOINT)
     cal = pincal.calibrate(robot, data, "placements", extension=ext)

@@ -19,11 +19,11 @@ import pytest
 from cli_run import run as run_cli
 
 import pincal
-from pincal.calibrated_robot import load_calibration
-from pincal.delivery import exported_errors
-from pincal.effects import Extension
-from pincal.simulation import hide_effect
-from pincal.urdf_writer import write_corrected_urdf
+from pincal.auto.delivery import exported_errors
+from pincal.export.calibrated_robot import load_calibration
+from pincal.export.urdf_writer import write_corrected_urdf
+from pincal.kinematics.effects import Extension
+from pincal.simulation.truth import hide_effect
 
 EFFECTS = [
     "joint_compliance:shoulder_lift_joint",

@@ -2,7 +2,7 @@
 
 - Hidden effects: a simulated robot (random geometric errors, unknown instrument frame and tool
   point) with one effect hidden at 0.3-0.8 mm RMS at the tip, 80 poses, 0.03 mm noise:
-  :func:`pincal.diagnose.diagnose` names the effect and the joint, with a cross-validated gain of
+  :func:`pincal.auto.diagnose.diagnose` names the effect and the joint, with a cross-validated gain of
   at least 3 and an extended cross-validated RMS within 1.5x the noise floor ``0.03 sqrt(3)`` mm.
 - No false causes: on 20 seeded datasets with nothing hidden, ``diagnose`` answers ``none`` in at
   least 19.
@@ -22,10 +22,12 @@ import pinocchio as pin
 import pytest
 
 import pincal
+import pincal.auto.diagnose
+import pincal.kinematics.effects
+from pincal.auto.diagnose import Diagnosis, diagnose
 from pincal.cli import main
-from pincal.diagnose import Diagnosis, diagnose
-from pincal.effects import EFFECTS, Extension, candidates
-from pincal.simulation import TrueRobot, hide_effect
+from pincal.kinematics.effects import EFFECTS, Extension, candidates
+from pincal.simulation.truth import TrueRobot, hide_effect
 
 NOISE = 3e-5  # 1σ of each measured coordinate [m]
 NOISE_FLOOR_MM = NOISE * 1e3 * np.sqrt(3.0)  # RMS of a 3-D noise vector [mm], 0.052 mm
@@ -44,7 +46,7 @@ def hidden_effect_data(
 
     Args:
         robot: the nominal robot.
-        label: ``EFFECT:JOINT`` as :meth:`pincal.effects.Extension.parse` reads it.
+        label: ``EFFECT:JOINT`` as :meth:`pincal.kinematics.effects.Extension.parse` reads it.
         rms: RMS of the effect's tip displacement over the poses [m].
         seed: seed of the geometric errors, instrument, tool, poses, effect and noise.
         n_poses: number of poses.
@@ -111,7 +113,7 @@ HIDDEN_CASES = [
 
 
 def test_hidden_cases_cover_every_effect_on_two_robots_and_two_joints() -> None:
-    """Every effect of :data:`pincal.effects.EFFECTS` is hidden on two joints of ur5 and panda."""
+    """Every effect of :data:`pincal.kinematics.effects.EFFECTS` is hidden on two joints of ur5 and panda."""
     covered: dict[tuple[str, str], set[str]] = {}
     for name, label, _, rms in HIDDEN_CASES:
         effect, _, joint = label.partition(":")
@@ -128,9 +130,7 @@ def test_hidden_cases_cover_every_effect_on_two_robots_and_two_joints() -> None:
     HIDDEN_CASES,
     ids=[f"{c[0]}-{c[1]}" for c in HIDDEN_CASES],
 )
-def test_diagnose_names_hidden_effect(
-    get_robot, name: str, label: str, seed: int, rms: float
-) -> None:
+def test_diagnose_names_hidden_effect(get_robot, name: str, label: str, seed: int, rms: float) -> None:
     """The hidden effect and joint are named, with a gain >= 3 down to the noise floor."""
     robot = get_robot(name)
     truth, data = hidden_effect_data(robot, label, rms, seed)
@@ -235,9 +235,7 @@ EXTEND_CASES = [
 
 
 @pytest.mark.parametrize(("label", "seed", "rms"), EXTEND_CASES, ids=[c[0] for c in EXTEND_CASES])
-def test_cli_calibrate_extend(
-    get_robot, tmp_path: Path, capsys, label: str, seed: int, rms: float
-) -> None:
+def test_cli_calibrate_extend(get_robot, tmp_path: Path, capsys, label: str, seed: int, rms: float) -> None:
     """``calibrate --extend --geometry joint`` predicts held-out poses to the noise floor and finds
     the effect (the default, geometry first, is tested in ``test_delivery.py``).
 
@@ -321,9 +319,7 @@ def relative_error(jac: np.ndarray, jac_fd: np.ndarray) -> float:
 
 @pytest.mark.parametrize("kind", ["placements", "mdh"])
 @pytest.mark.parametrize(("name", "label"), JACOBIAN_CASES)
-def test_extension_jacobian_matches_finite_differences(
-    get_robot, name: str, label: str, kind: str
-) -> None:
+def test_extension_jacobian_matches_finite_differences(get_robot, name: str, label: str, kind: str) -> None:
     """Position residuals with a random registration, tool and effect: analytic = central FD.
 
     The effect's parameters are drawn so that the joint error is about 0.01 rad (or m); each
@@ -333,13 +329,13 @@ def test_extension_jacobian_matches_finite_differences(
     rng = np.random.default_rng(17)
     pin.seed(17)  # SE3.Random draws from Eigen's generator
     ext = Extension.parse(robot, label)
-    model = pincal.make_model(kind, robot)
-    measurement = pincal.Measurement(
+    model = pincal.kinematics.models.make_model(kind, robot)
+    measurement = pincal.identify.measurements.Measurement(
         "position", instrument_T_base=pin.SE3.Random(), tool=pin.SE3.Random()
     )
     q = robot.random_configurations(12, rng)
     placeholder = pincal.Dataset(robot.joint_names, q, np.zeros((len(q), 3)))
-    draft = pincal.Problem(model, measurement, placeholder, ext)
+    draft = pincal.identify.measurements.Problem(model, measurement, placeholder, ext)
     assert draft.names[model.n_params : draft.n_model] == ext.names
     regressor_rms = np.sqrt(np.mean(draft.regressors**2, axis=0))
     assert np.all(regressor_rms > 0.0)
@@ -347,7 +343,9 @@ def test_extension_jacobian_matches_finite_differences(
     effect = slice(model.n_params, draft.n_model)
     theta[effect] = rng.normal(0.0, 0.01, ext.n_params) / regressor_rms
     points = draft.predict(theta)[0] + rng.normal(0.0, 1e-3, (len(q), 3))
-    problem = pincal.Problem(model, measurement, pincal.Dataset(robot.joint_names, q, points), ext)
+    problem = pincal.identify.measurements.Problem(
+        model, measurement, pincal.Dataset(robot.joint_names, q, points), ext
+    )
 
     jac = problem.jacobian(theta)
     assert jac.shape == (3 * len(q), problem.n_params)

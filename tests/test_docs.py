@@ -14,8 +14,8 @@ import pytest
 from cli_run import run
 
 import pincal
-from pincal.effects import Extension
-from pincal.simulation import hide_effect
+from pincal.kinematics.effects import Extension
+from pincal.simulation.truth import hide_effect
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 #: Objects whose keys are names from the data (parameters, joints), not keys to document.

@@ -7,7 +7,8 @@ import pinocchio as pin
 import pytest
 
 import pincal
-from pincal.effects import Payload, gravity_torques
+import pincal.kinematics.chain
+from pincal.kinematics.effects import Payload, gravity_torques
 
 
 @pytest.mark.parametrize("name", ["ur5", "panda", "mrres5"])
@@ -26,7 +27,7 @@ def test_payload_adds_its_weight_through_the_jacobian(get_robot, name: str) -> N
         tip = data.oMf[robot.tip_frame_id]
         lever = tip.rotation @ np.array(payload.com)
         jac = pin.getFrameJacobian(robot.model, data, robot.tip_frame_id, pin.LOCAL_WORLD_ALIGNED)
-        point = jac[:3] - pincal.kinematics.skew(lever) @ jac[3:]
+        point = jac[:3] - pincal.kinematics.chain.skew(lever) @ jac[3:]
         np.testing.assert_allclose(got, -(point.T @ weight), atol=1e-9)
     # The robot's own model is left as it was: without a payload, the torques are unchanged.
     np.testing.assert_array_equal(gravity_torques(robot, q), bare)

@@ -1,9 +1,9 @@
 """The fast paths give what the plain ones give.
 
-- :func:`pincal.kinematics.log3` and :func:`~pincal.kinematics.jlog3`, vectorised over poses,
+- :func:`pincal.kinematics.chain.log3` and :func:`~pincal.kinematics.chain.jlog3`, vectorised over poses,
   equal Pinocchio's ``log3`` and ``Jlog3`` from tiny angles to nearly half a turn;
 - ``Problem.jacobian(theta, free)`` is the full Jacobian's columns ``free``, for every measure;
-- the linearised screen of :mod:`pincal.screening` ranks a hidden effect first and its
+- the linearised screen of :mod:`pincal.auto.screening` ranks a hidden effect first and its
   cross-validated RMS is close to the nonlinear cross-validation's;
 - one BLAS thread by default, ``PINCAL_THREADS`` and ``--threads`` to change it;
 - ``import pincal`` and ``pincal --help`` load neither NumPy nor Pinocchio.
@@ -19,12 +19,13 @@ import pinocchio as pin
 import pytest
 
 import pincal
-from pincal.crossval import cross_validate
-from pincal.effects import Extension
-from pincal.kinematics import jlog3, log3
-from pincal.screening import Linearised
-from pincal.simulation import hide_effect
-from pincal.solver import set_up
+import pincal.kinematics.chain
+from pincal.auto.crossval import cross_validate
+from pincal.auto.screening import Linearised
+from pincal.identify.solver import set_up
+from pincal.kinematics.chain import jlog3, log3
+from pincal.kinematics.effects import Extension
+from pincal.simulation.truth import hide_effect
 from pincal.threads import blas_threads, thread_count
 
 
@@ -126,7 +127,7 @@ def test_cli_threads_option_is_checked() -> None:
 def test_levenberg_marquardt_finds_least_squares_minimum(seed: int) -> None:
     from scipy.optimize import least_squares
 
-    from pincal.lm import levenberg_marquardt
+    from pincal.identify.lm import levenberg_marquardt
 
     rng = np.random.default_rng(seed)
     t = np.linspace(0.0, 3.0, 40)

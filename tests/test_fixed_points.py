@@ -1,8 +1,8 @@
-"""Fixed-point constraints (``--measure points``, :mod:`pincal.fixed_points`): calibration without
+"""Fixed-point constraints (``--measure points``, :mod:`pincal.identify.fixed_points`): calibration without
 an instrument, as MUKCa does it.
 
-Every experiment is simulated (:func:`pincal.simulation.simulate_points`, seeded): a true robot
-with random geometric errors (:func:`pincal.simulation.points_truth`: 0.5 mm / 0.5 mrad 1σ per
+Every experiment is simulated (:func:`pincal.simulation.truth.simulate_points`, seeded): a true robot
+with random geometric errors (:func:`pincal.simulation.truth.points_truth`: 0.5 mm / 0.5 mrad 1σ per
 joint origin, 1 mrad 1σ zero offsets) carries a ball 30-80 mm from its tip frame, unknown to the
 fit; each row is the commands that put the true ball in its socket (two sockets 50 mm apart in
 front of the robot), plus a 0.05 mm 1σ isotropic error of the hand that holds it. What is checked:
@@ -35,15 +35,16 @@ import pinocchio as pin
 import pytest
 
 import pincal
+import pincal.simulation.truth
+from pincal.auto.diagnose import diagnose
 from pincal.cli import main
-from pincal.diagnose import diagnose
-from pincal.effects import Extension
+from pincal.data.point_files import read_socket_folder
 from pincal.errors import DataError, PincalError
-from pincal.fixed_points import DISTANCE_WEIGHT, parse_point_distances, point_errors
-from pincal.kinematics import Chain, forward
-from pincal.point_files import read_socket_folder
-from pincal.report import report_dict, report_warnings
-from pincal.simulation import TrueRobot, ball_positions, hide_effect, points_truth, simulate_points
+from pincal.identify.fixed_points import DISTANCE_WEIGHT, parse_point_distances, point_errors
+from pincal.kinematics.chain import Chain, forward
+from pincal.kinematics.effects import Extension
+from pincal.report.report import report_dict, report_warnings
+from pincal.simulation.truth import TrueRobot, ball_positions, hide_effect, points_truth, simulate_points
 
 #: 1σ of each coordinate of where the hand holds the ball [m].
 NOISE = 5e-5
@@ -173,7 +174,7 @@ def test_simulate_points_accepts_a_nominal_robot() -> None:
 
 def _points_problem(
     key: str, kind: str, known: bool, extended: bool, seed: int
-) -> tuple[pincal.Problem, np.ndarray]:
+) -> tuple[pincal.identify.measurements.Problem, np.ndarray]:
     """A fixed-point problem on 12 simulated rows and a random θ near its fit: model parameters
     ~1e-3, the extension's moving its joint ~1e-3 rad, points and tool within ~1 mm of theirs."""
     robot = _robot(key)
@@ -181,13 +182,15 @@ def _points_problem(
     truth = points_truth(robot, seed)
     data = simulate_points(truth, TRAIN_SOCKETS, 12, NOISE, rng)
     ext = Extension.parse(robot, f"joint_compliance:{ROBOTS[key][2]}") if extended else None
-    measurement = pincal.Measurement(
+    measurement = pincal.identify.measurements.Measurement(
         "points",
         tool=pin.SE3(np.eye(3), truth.tool.translation),
         points=data.point_names,
         point_distances=DISTANCES if known else (),
     )
-    problem = pincal.Problem(pincal.make_model(kind, robot), measurement, data, ext)
+    problem = pincal.identify.measurements.Problem(
+        pincal.kinematics.models.make_model(kind, robot), measurement, data, ext
+    )
     theta = problem.initial_theta()  # the points at their rows' mean, the tool at the truth's
     n_geo, n_model = problem.model.n_params, problem.n_model
     theta[:n_geo] += rng.normal(0.0, 1e-3, n_geo)
@@ -507,7 +510,7 @@ def _reported_model(
     """The reported model's tip rotations and positions [m] at ``q`` and its tool [m], rebuilt
     from the report's parameters (mm, mrad)."""
     values = {row["name"]: row["value"] * 1e-3 for row in report["parameters"]}
-    model = pincal.make_model(report["model"], robot)
+    model = pincal.kinematics.models.make_model(report["model"], robot)
     frames = forward(model.chain(np.array([values[n] for n in model.names])), q)
     return frames.tip_rotation, frames.tip_translation, np.array([values[f"tool.{c}"] for c in "xyz"])
 

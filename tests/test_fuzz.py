@@ -35,6 +35,8 @@ from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 import pincal
+import pincal.robot.robots
+import pincal.tool.tcp
 from pincal import cli
 
 #: Fast and quiet: no example database in the working tree, no per-example deadline.
@@ -444,7 +446,7 @@ def _ur5_lines() -> tuple[list[str], list[str]]:
 
 
 DATA_LINES, TEST_LINES = _ur5_lines()
-URDF_TEXT = pincal.robots.bundled_urdf("ur5").read_text(encoding="utf-8")
+URDF_TEXT = pincal.robot.robots.bundled_urdf("ur5").read_text(encoding="utf-8")
 
 
 def _setup(folder: Path, data: bytes) -> None:
@@ -478,7 +480,7 @@ def test_calibrate_on_malformed_input(
 def _flange_lines(quaternions: bool) -> list[str]:
     rng = np.random.default_rng(2)
     abc = rng.uniform(-40.0, 40.0, (6, 3))
-    rot = pincal.tool.euler_zyx(*np.deg2rad(abc).T)
+    rot = pincal.tool.tcp.euler_zyx(*np.deg2rad(abc).T)
     pos = np.array([800.0, 100.0, 300.0]) - rot @ np.array([10.0, -20.0, 150.0])
     if not quaternions:
         return ["x,y,z,a,b,c", *(",".join(repr(float(v)) for v in row) for row in np.hstack([pos, abc]))]

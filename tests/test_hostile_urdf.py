@@ -19,9 +19,10 @@ import numpy as np
 import pytest
 
 import pincal
+import pincal.robot.robots
 from pincal.cli import main
 from pincal.options import BUNDLED
-from pincal.urdf_checks import MAX_CHAIN, MAX_JOINTS, check_urdf_structure
+from pincal.robot.urdf_checks import MAX_CHAIN, MAX_JOINTS, check_urdf_structure
 
 
 def _joint(
@@ -173,8 +174,8 @@ def test_urdfs_that_crashed_the_parser_end_in_one_line(case: str, tmp_path: Path
 def test_real_urdfs_pass_the_check() -> None:
     """No false refusal: every bundled robot's URDF passes, and loads."""
     for name in BUNDLED:
-        path = pincal.robots.bundled_urdf(name)
-        check_urdf_structure(pincal.robots.read_urdf_text(path), path)
+        path = pincal.robot.robots.bundled_urdf(name)
+        check_urdf_structure(pincal.robot.robots.read_urdf_text(path), path)
         assert pincal.load_robot(name).n_joints > 0
 
 
@@ -205,7 +206,7 @@ def test_twists_exits_2_when_pinocchio_disagrees(
     """Past the structure check (switched off here), the zero-axis arm's twists disagree with
     Pinocchio by about π: ``twists`` ends with exit 2 and one line, and prints no table (a
     refused run prints nothing on stdout)."""
-    monkeypatch.setattr(pincal.robots, "check_urdf_structure", lambda text, path: None)
+    monkeypatch.setattr(pincal.robot.robots, "check_urdf_structure", lambda text, path: None)
     urdf = _urdf(tmp_path, _arm(axis="0 0 0"))
     capfd.readouterr()
     code = main(["twists", str(urdf)])

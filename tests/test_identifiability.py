@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 import pincal
-from pincal.mdh import PARALLEL_TOL
+from pincal.kinematics.mdh import PARALLEL_TOL
 
 COMPONENTS = ("tx", "ty", "tz")
 
@@ -118,7 +118,7 @@ def axis_component(robot: pincal.Robot, j: int) -> str:
 
 def parallel_run_end(robot: pincal.Robot, j: int) -> int:
     """Last joint ``m >= j`` such that the axes ``j .. m`` are all parallel (base frame, q = 0)."""
-    w = pincal.nominal_twists(robot).twists[:, 3:]
+    w = pincal.kinematics.twists.nominal_twists(robot).twists[:, 3:]
     m = j
     while m + 1 < robot.n_joints and np.linalg.norm(np.cross(w[j], w[m + 1])) < 1e-9:
         m += 1
@@ -229,7 +229,7 @@ def test_offset_of_never_moving_middle_joint(experiment, frozen: int) -> None:
 
 
 def test_mdh_holds_beta_on_ur5_non_parallel_axes(get_robot) -> None:
-    model = pincal.make_model("mdh", get_robot("ur5"))
+    model = pincal.kinematics.models.make_model("mdh", get_robot("ur5"))
     for joint in ("shoulder_lift_joint", "wrist_2_joint", "wrist_3_joint"):
         assert f"{joint}.beta" in model.held
     for joint in ("shoulder_pan_joint", "elbow_joint", "wrist_1_joint"):
@@ -240,8 +240,8 @@ def test_mdh_holds_beta_on_ur5_non_parallel_axes(get_robot) -> None:
 @pytest.mark.parametrize("name", ["ur5", "ur10", "panda", "z1", "mrres5", "zu3"])
 def test_mdh_holds_beta_exactly_where_axes_are_not_parallel(get_robot, name: str) -> None:
     robot = get_robot(name)
-    model = pincal.make_model("mdh", robot)
-    w = pincal.nominal_twists(robot).twists[:, 3:]
+    model = pincal.kinematics.models.make_model("mdh", robot)
+    w = pincal.kinematics.twists.nominal_twists(robot).twists[:, 3:]
     for j, joint in enumerate(robot.joint_names):
         angle = 0.0 if j == 0 else float(np.arcsin(min(1.0, np.linalg.norm(np.cross(w[j - 1], w[j])))))
         assert abs(angle - PARALLEL_TOL) > 1e-3, "an axis pair at the threshold makes this test moot"

@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 
 import pincal
+from pincal.auto.diagnose import diagnose
 from pincal.cli import main
-from pincal.diagnose import diagnose
-from pincal.effects import gravity_torques, massless
 from pincal.errors import RobotError
-from pincal.robots import bundled_urdf
+from pincal.kinematics.effects import gravity_torques, massless
+from pincal.robot.robots import bundled_urdf
 
 HINT = "the URDF has no masses (lend them with --inertias URDF)"
 
@@ -72,9 +72,7 @@ def test_diagnosis_names_what_it_could_not_try(bare_ur5: Path) -> None:
     assert lent.untried is None and HINT not in lent.summary()
 
 
-def test_cli_inertias_option(
-    capsys: pytest.CaptureFixture[str], tmp_path: Path, bare_ur5: Path
-) -> None:
+def test_cli_inertias_option(capsys: pytest.CaptureFixture[str], tmp_path: Path, bare_ur5: Path) -> None:
     """``pincal diagnose`` prints the note without ``--inertias`` and not with it; a donor that
     lends nothing is one error line, exit 2."""
     robot = pincal.load_robot(bare_ur5, tip="tool0")

@@ -13,9 +13,9 @@ import pinocchio as pin
 import pytest
 from cli_run import one_error_line, run
 
-from pincal.data import write_csv
-from pincal.simulated_recording import write_recording
-from pincal.simulation import TrueRobot, random_truth
+from pincal.data.dataset import write_csv
+from pincal.simulation.simulated_recording import write_recording
+from pincal.simulation.truth import TrueRobot, random_truth
 
 #: The robot's own scatter between visits: joint angles [rad] and the tracker's noise [m].
 JOINT_SCATTER, NOISE = 2e-5, 1e-5

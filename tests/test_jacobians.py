@@ -6,7 +6,7 @@
 - The tip Jacobian of every model, and the residual Jacobian of every model x measure
   (``position``, ``pose``, ``distance``) with a random registration and tool, match central
   finite differences (relative error <= 1e-6).
-- The joint-angle columns: :func:`pincal.joint_jacobian` equals Pinocchio's frame Jacobian
+- The joint-angle columns: :func:`pincal.kinematics.chain.joint_jacobian` equals Pinocchio's frame Jacobian
   (LOCAL_WORLD_ALIGNED) within 1e-10, and the derivative of the ``position`` residual with respect
   to the joint values equals Pinocchio's frame Jacobian mapped into the instrument frame,
   ``R_I (J_v - [R_tip p]x J_ω)``, within 1e-10.
@@ -22,7 +22,7 @@ import pytest
 from finite_differences import tip_jacobian_fd
 
 import pincal
-from pincal.kinematics import skew
+from pincal.kinematics.chain import skew
 
 ROBOTS = ("ur5", "ur10", "panda", "z1", "mrres5", "zu3")
 JACOBIAN_ROBOTS = ("ur5", "panda")
@@ -37,9 +37,7 @@ def rotation_errors(r_ref: np.ndarray, r: np.ndarray) -> np.ndarray:
     return np.array([np.linalg.norm(pin.log3(a.T @ b)) for a, b in zip(r_ref, r)])
 
 
-def pinocchio_tips(
-    robot: pincal.Robot, configurations: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
+def pinocchio_tips(robot: pincal.Robot, configurations: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Tip rotations (N, 3, 3) and translations (N, 3) by Pinocchio."""
     placements = [robot.frame_placement(q) for q in configurations]
     return np.array([m.rotation for m in placements]), np.array([m.translation for m in placements])
@@ -59,9 +57,9 @@ def relative_error(jac: np.ndarray, jac_fd: np.ndarray) -> float:
 @pytest.mark.parametrize("name", ROBOTS)
 def test_model_at_zero_is_pinocchio(get_robot, name: str, kind: str) -> None:
     robot = get_robot(name)
-    model = pincal.make_model(kind, robot)
+    model = pincal.kinematics.models.make_model(kind, robot)
     configurations = robot.random_configurations(30, np.random.default_rng(7))
-    frames = pincal.forward(model.chain(np.zeros(model.n_params)), configurations)
+    frames = pincal.kinematics.chain.forward(model.chain(np.zeros(model.n_params)), configurations)
     rot_ref, pos_ref = pinocchio_tips(robot, configurations)
     assert np.max(np.linalg.norm(frames.tip_translation - pos_ref, axis=1)) <= TOL
     assert np.max(rotation_errors(rot_ref, frames.tip_rotation)) <= TOL
@@ -71,7 +69,7 @@ def test_model_at_zero_is_pinocchio(get_robot, name: str, kind: str) -> None:
 def test_placements_equal_edited_pinocchio_model(get_robot, name: str) -> None:
     """``C_j = C⁰_j exp(δ_j)`` is Pinocchio's ``jointPlacements[j] * exp6(δ_j)``."""
     robot = get_robot(name)
-    model = pincal.make_model("placements", robot)
+    model = pincal.kinematics.models.make_model("placements", robot)
     rng = np.random.default_rng(11)
     x = rng.normal(0.0, 0.05, model.n_params)
     edited = pin.Model(robot.model)
@@ -80,7 +78,7 @@ def test_placements_equal_edited_pinocchio_model(get_robot, name: str) -> None:
         edited.jointPlacements[j] = edited.jointPlacements[j] * pin.exp6(pin.Motion(delta))
     data = edited.createData()
     configurations = robot.random_configurations(30, rng)
-    frames = pincal.forward(model.chain(x), configurations)
+    frames = pincal.kinematics.chain.forward(model.chain(x), configurations)
     for i, q in enumerate(configurations):
         pin.framesForwardKinematics(edited, data, robot.configuration(q))
         ref = data.oMf[robot.tip_frame_id]
@@ -98,12 +96,12 @@ def test_placements_equal_edited_pinocchio_model(get_robot, name: str) -> None:
 @pytest.mark.parametrize("name", JACOBIAN_ROBOTS)
 def test_tip_jacobian_matches_finite_differences(get_robot, name: str, kind: str) -> None:
     robot = get_robot(name)
-    model = pincal.make_model(kind, robot)
+    model = pincal.kinematics.models.make_model(kind, robot)
     rng = np.random.default_rng(3)
     x = rng.normal(0.0, 0.01, model.n_params)
     configurations = robot.random_configurations(8, rng)
-    frames = pincal.forward(model.chain(x), configurations)
-    jac = pincal.tip_jacobian(frames, model.twists(x))
+    frames = pincal.kinematics.chain.forward(model.chain(x), configurations)
+    jac = pincal.kinematics.chain.tip_jacobian(frames, model.twists(x))
     assert jac.shape == (8, 6, model.n_params)
     jac_fd = tip_jacobian_fd(model, x, configurations, step=FD_STEP)
     assert relative_error(jac, jac_fd) <= FD_RTOL
@@ -111,7 +109,7 @@ def test_tip_jacobian_matches_finite_differences(get_robot, name: str, kind: str
 
 def make_problem(
     robot: pincal.Robot, kind: str, measure: str, seed: int
-) -> tuple[pincal.Problem, np.ndarray]:
+) -> tuple[pincal.identify.measurements.Problem, np.ndarray]:
     """A problem with a random registration and tool on 8 random poses, and a random θ near it.
 
     The measurements are the model's own predictions at θ, slightly perturbed, so that the
@@ -119,15 +117,15 @@ def make_problem(
     """
     rng = np.random.default_rng(seed)
     pin.seed(seed)  # SE3.Random draws from Eigen's generator
-    model = pincal.make_model(kind, robot)
-    measurement = pincal.Measurement(
+    model = pincal.kinematics.models.make_model(kind, robot)
+    measurement = pincal.identify.measurements.Measurement(
         measure, instrument_T_base=pin.SE3.Random(), tool=pin.SE3.Random()
     )
     configurations = robot.random_configurations(8, rng)
     placeholder = pincal.Dataset(
         robot.joint_names, configurations, np.zeros((8, 3)), np.tile([1.0, 0.0, 0.0, 0.0], (8, 1))
     )
-    draft = pincal.Problem(model, measurement, placeholder)
+    draft = pincal.identify.measurements.Problem(model, measurement, placeholder)
     theta = draft.initial_theta() + rng.normal(0.0, 0.01, draft.n_params)
     points, rotations = draft.predict(theta)
     points = points + rng.normal(0.0, 1e-3, points.shape)
@@ -136,15 +134,13 @@ def make_problem(
         qt = pin.Quaternion(pin.exp3(rng.normal(0.0, 0.02, 3)) @ r)
         quaternions[i] = (qt.w, qt.x, qt.y, qt.z)
     data = pincal.Dataset(robot.joint_names, configurations, points, quaternions)
-    return pincal.Problem(model, measurement, data), theta
+    return pincal.identify.measurements.Problem(model, measurement, data), theta
 
 
 @pytest.mark.parametrize("measure", MEASURES)
 @pytest.mark.parametrize("kind", pincal.MODELS)
 @pytest.mark.parametrize("name", JACOBIAN_ROBOTS)
-def test_problem_jacobian_matches_finite_differences(
-    get_robot, name: str, kind: str, measure: str
-) -> None:
+def test_problem_jacobian_matches_finite_differences(get_robot, name: str, kind: str, measure: str) -> None:
     problem, theta = make_problem(get_robot(name), kind, measure, seed=5)
     jac = problem.jacobian(theta)
     n_residuals = {"position": 3 * 8, "pose": 6 * 8, "distance": 8 * 7 // 2}[measure]
@@ -153,9 +149,7 @@ def test_problem_jacobian_matches_finite_differences(
     for c in range(problem.n_params):
         step = np.zeros(problem.n_params)
         step[c] = FD_STEP
-        jac_fd[:, c] = (problem.residuals(theta + step) - problem.residuals(theta - step)) / (
-            2 * FD_STEP
-        )
+        jac_fd[:, c] = (problem.residuals(theta + step) - problem.residuals(theta - step)) / (2 * FD_STEP)
     assert relative_error(jac, jac_fd) <= FD_RTOL
 
 
@@ -165,9 +159,11 @@ def test_problem_jacobian_matches_finite_differences(
 @pytest.mark.parametrize("name", ROBOTS)
 def test_joint_jacobian_equals_pinocchio_frame_jacobian(get_robot, name: str) -> None:
     robot = get_robot(name)
-    chain = pincal.Chain.nominal(robot)
+    chain = pincal.kinematics.chain.Chain.nominal(robot)
     configurations = robot.random_configurations(20, np.random.default_rng(17))
-    jac = pincal.joint_jacobian(chain, pincal.forward(chain, configurations))
+    jac = pincal.kinematics.chain.joint_jacobian(
+        chain, pincal.kinematics.chain.forward(chain, configurations)
+    )
     assert jac.shape == (20, 6, robot.n_joints)
     for i, q in enumerate(configurations):
         np.testing.assert_allclose(jac[i], robot.frame_jacobian(q), rtol=0.0, atol=TOL)
@@ -200,12 +196,14 @@ def test_position_residual_joint_derivative_equals_pinocchio(get_robot, name: st
     n, n_poses = robot.n_joints, 6
     reg = pin.SE3(pin.exp3(rng.normal(size=3)), rng.normal(size=3))
     point = rng.normal(0.0, 0.1, 3)
-    measurement = pincal.Measurement(
+    measurement = pincal.identify.measurements.Measurement(
         "position", instrument_T_base=reg, fit_instrument=False, tool=pin.SE3(np.eye(3), point)
     )
     configurations = robot.random_configurations(n_poses, rng)
     data = pincal.Dataset(robot.joint_names, configurations, rng.normal(size=(n_poses, 3)))
-    problem = pincal.Problem(pincal.make_model("offsets", robot), measurement, data)
+    problem = pincal.identify.measurements.Problem(
+        pincal.kinematics.models.make_model("offsets", robot), measurement, data
+    )
     theta = problem.initial_theta()
     assert np.allclose(theta[n:], point) and not np.any(theta[:n])
 
@@ -218,9 +216,11 @@ def test_position_residual_joint_derivative_equals_pinocchio(get_robot, name: st
         q_plus, q_minus = configurations.copy(), configurations.copy()
         q_plus[:, j] += FD_STEP
         q_minus[:, j] -= FD_STEP
-        plus = pincal.Problem(problem.model, measurement, replace(data, q=q_plus)).residuals(theta)
-        minus = pincal.Problem(problem.model, measurement, replace(data, q=q_minus)).residuals(
-            theta
-        )
+        plus = pincal.identify.measurements.Problem(
+            problem.model, measurement, replace(data, q=q_plus)
+        ).residuals(theta)
+        minus = pincal.identify.measurements.Problem(
+            problem.model, measurement, replace(data, q=q_minus)
+        ).residuals(theta)
         by_q[:, :, j] = ((plus - minus) / (2 * FD_STEP)).reshape(n_poses, 3)
     assert relative_error(expected, by_q) <= FD_RTOL

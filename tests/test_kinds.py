@@ -1,6 +1,6 @@
-"""The measurement kinds (:mod:`pincal.kinds`): the registry, and each kind's residual rows.
+"""The measurement kinds (:mod:`pincal.identify.kinds`): the registry, and each kind's residual rows.
 
-- ``KINDS`` holds one kind per ``--measure`` name, and :func:`pincal.kinds.get_kind` refuses an
+- ``KINDS`` holds one kind per ``--measure`` name, and :func:`pincal.identify.kinds.get_kind` refuses an
   unknown name with a :class:`pincal.DataError` that lists the names.
 - For every kind, :meth:`MeasurementKind.rows` on a problem of 6 random UR5 poses (random
   registration and tool, θ near the nominal) gives as many rows as the kind says, and its Jacobian
@@ -15,7 +15,8 @@ import pinocchio as pin
 import pytest
 
 import pincal
-from pincal.kinds import KINDS, MeasurementKind, get_kind
+import pincal.identify.kinds
+from pincal.identify.kinds import KINDS, MeasurementKind, get_kind
 from pincal.options import MEASURES
 
 N_POSES = 6
@@ -23,17 +24,19 @@ FD_RTOL = 1e-6  # max |J - J_fd| / max |J|
 FD_STEP = 1e-6
 
 
-def make_problem(robot: pincal.Robot, measure: str, seed: int) -> tuple[pincal.Problem, np.ndarray]:
+def make_problem(
+    robot: pincal.Robot, measure: str, seed: int
+) -> tuple[pincal.identify.measurements.Problem, np.ndarray]:
     """A ``placements`` problem of ``measure`` on random poses, its data the model's own
     predictions at a random θ, slightly perturbed; fixed points: two points, three rows each, and
     one known distance between them."""
     rng = np.random.default_rng(seed)
     pin.seed(seed)
-    model = pincal.make_model("placements", robot)
+    model = pincal.kinematics.models.make_model("placements", robot)
     q = robot.random_configurations(N_POSES, rng)
     labels = np.repeat([0, 1], N_POSES // 2)
     names = ("a", "b") if measure == "points" else ()
-    measurement = pincal.Measurement(
+    measurement = pincal.identify.measurements.Measurement(
         measure,
         instrument_T_base=pin.SE3.Random(),
         tool=pin.SE3.Random(),
@@ -45,21 +48,21 @@ def make_problem(robot: pincal.Robot, measure: str, seed: int) -> tuple[pincal.P
     def dataset(points: np.ndarray) -> pincal.Dataset:
         return pincal.Dataset(robot.joint_names, q, points, quats, labels=labels, point_names=names)
 
-    draft = pincal.Problem(model, measurement, dataset(np.zeros((N_POSES, 3))))
+    draft = pincal.identify.measurements.Problem(model, measurement, dataset(np.zeros((N_POSES, 3))))
     theta = draft.initial_theta() + rng.normal(0.0, 0.01, draft.n_params)
     points, rotations = draft.predict(theta)
     points = points + rng.normal(0.0, 1e-3, points.shape)
     for i, r in enumerate(rotations):
         qt = pin.Quaternion(pin.exp3(rng.normal(0.0, 0.02, 3)) @ r)
         quats[i] = (qt.w, qt.x, qt.y, qt.z)
-    return pincal.Problem(model, measurement, dataset(points)), theta
+    return pincal.identify.measurements.Problem(model, measurement, dataset(points)), theta
 
 
 def test_registry_holds_every_measure() -> None:
     assert tuple(KINDS) == MEASURES
     for name, kind in KINDS.items():
         assert isinstance(kind, MeasurementKind) and kind.name == name and get_kind(name) is kind
-        assert pincal.Measurement(name).measure is kind
+        assert pincal.identify.measurements.Measurement(name).measure is kind
         assert kind.tool_dof in (3, 6)
 
 
@@ -69,17 +72,19 @@ def test_unknown_kind_is_refused_with_the_names(name: str) -> None:
         get_kind(name)
     assert all(k in str(raised.value) for k in KINDS)
     with pytest.raises(pincal.DataError, match="position, pose, distance, points"):
-        pincal.Measurement(name)
+        pincal.identify.measurements.Measurement(name)
 
 
 def test_unknowns_follow_the_kind() -> None:
     """Registration: position and pose only; tool: 6 for pose, else 3; points: fixed points."""
     for name, kind in KINDS.items():
-        m = pincal.Measurement(name, points=("a",) if kind.fixed_points else ())
+        m = pincal.identify.measurements.Measurement(name, points=("a",) if kind.fixed_points else ())
         assert m.n_instrument == (6 if kind.registered else 0)
         assert m.n_tool == kind.tool_dof
         assert m.n_points == (3 if kind.fixed_points else 0)
-        assert pincal.Measurement(name, fit_tool=False, fit_instrument=False).n_tool == 0
+        assert (
+            pincal.identify.measurements.Measurement(name, fit_tool=False, fit_instrument=False).n_tool == 0
+        )
 
 
 @pytest.mark.parametrize("measure", MEASURES)

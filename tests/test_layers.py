@@ -1,9 +1,9 @@
 """No import circle among pincal's modules (issue 32): the layers point only down.
 
 The graph is grimp's, imports inside functions and under ``if TYPE_CHECKING:`` included: no
-annotation points up either (a calibration's records live in :mod:`pincal.records` below it;
+annotation points up either (a calibration's records live in :mod:`pincal.identify.records` below it;
 the kinds, the fixed points and the blocks of large data take a problem as the protocol of
-:mod:`pincal.rows`). A cycle is a strongly connected component of more than one module. The
+:mod:`pincal.identify.rows`). A cycle is a strongly connected component of more than one module. The
 layer order itself is the import-linter contract of pyproject.toml (``lint-imports``), which
 ignores no import.
 """

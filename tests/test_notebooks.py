@@ -83,9 +83,7 @@ def test_tour_reports_calibrated_held_out_rms() -> None:
 
 
 EXPORT = NOTEBOOKS_DIR / "01_calibrate_and_export.ipynb"
-EXPORT_LINE = re.compile(
-    r"held-out RMS exported URDF: ([0-9.]+) mm, calibrated model: ([0-9.]+) mm"
-)
+EXPORT_LINE = re.compile(r"held-out RMS exported URDF: ([0-9.]+) mm, calibrated model: ([0-9.]+) mm")
 
 
 def test_export_reproduces_calibrated_held_out_rms() -> None:

@@ -18,8 +18,10 @@ import numpy as np
 import pytest
 
 import pincal
+import pincal.export.urdf_writer
+import pincal.planning.candidates
 from pincal.cli import build_parser, main
-from pincal.simulation import random_truth
+from pincal.simulation.truth import random_truth
 
 BAD = ["nan", "inf", "-inf", "1e300", "abc"]
 #: (command line before the option, option, values refused)
@@ -110,14 +112,14 @@ def test_plan_candidates_are_bounded_by_memory(
     """10,000,000 candidates on a machine with 4 GB free: refused at once with the count that fits;
     a count no machine holds is refused on this one too."""
     out = tmp_path / "p.csv"
-    monkeypatch.setattr(pincal.candidates, "available_memory", lambda: 4e9)
+    monkeypatch.setattr(pincal.planning.candidates, "available_memory", lambda: 4e9)
     line = _one_line(
         capfd, main(["plan", "ur5", "--poses", "10", "--candidates", "10000000", "-o", str(out)]), "GB"
     )
     most = int(line.split("ask for ")[1].split()[0])
     assert 1000 < most < 10_000_000
     # what fits passes (on the same 4 GB: this machine's free memory varies with its load)
-    pincal.candidates.check_memory(pincal.load_robot("ur5"), most, "position", 10)
+    pincal.planning.candidates.check_memory(pincal.load_robot("ur5"), most, "position", 10)
     monkeypatch.undo()
     _one_line(
         capfd, main(["plan", "ur5", "--poses", "10", "--candidates", str(10**13), "-o", str(out)]), "memory"
@@ -186,10 +188,10 @@ def test_compensate_refuses_a_sidecar_matrix_that_is_not_a_rigid_transform(
 ) -> None:
     urdf = tmp_path / "cal.urdf"
     urdf.write_bytes(calibration.read_bytes())
-    side = json.loads(pincal.urdf_writer.sidecar_path(calibration).read_text(encoding="utf-8"))
+    side = json.loads(pincal.export.urdf_writer.sidecar_path(calibration).read_text(encoding="utf-8"))
     matrix = SIDECARS[case](np.array(side["tip_T_tool"]["matrix"]))
     side["tip_T_tool"]["matrix"] = matrix.tolist()
-    pincal.urdf_writer.sidecar_path(urdf).write_text(json.dumps(side), encoding="utf-8")
+    pincal.export.urdf_writer.sidecar_path(urdf).write_text(json.dumps(side), encoding="utf-8")
     args = ["compensate", "ur5", str(urdf), str(_program(tmp_path, "1,0,0,0")), "-o", str(tmp_path / "o.csv")]
     capfd.readouterr()
     _one_line(capfd, main(args), "tip_T_tool")

@@ -23,6 +23,8 @@ from pathlib import Path
 import pytest
 
 import pincal
+import pincal.data.dataset
+import pincal.export.urdf_writer
 from pincal.cli import main
 
 
@@ -227,7 +229,7 @@ def test_ctrl_c_inside_a_fit(
     def interrupted(*args: object, **kwargs: object) -> None:
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(pincal.pipeline, "solve", interrupted)
+    monkeypatch.setattr(pincal.auto.pipeline, "solve", interrupted)
     code, _, err = _run(capfd, *_calibrate(data, "-o", urdf, "--report", report, "--force"))
     assert code == 130
     _one_line(err, "interrupted")
@@ -276,24 +278,24 @@ def test_a_real_ctrl_c_between_the_renames_leaves_new_files_together(
     assert code == 130, err
     assert len(renames) == 3
     assert json.loads(report.read_text(encoding="utf-8")).get("old") is None
-    sidecar = json.loads(pincal.urdf_writer.sidecar_path(urdf).read_text(encoding="utf-8"))
+    sidecar = json.loads(pincal.export.urdf_writer.sidecar_path(urdf).read_text(encoding="utf-8"))
     assert sidecar and urdf.read_text(encoding="utf-8").startswith("<?xml")
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
-        [report.name, urdf.name, pincal.urdf_writer.sidecar_path(urdf).name]
+        [report.name, urdf.name, pincal.export.urdf_writer.sidecar_path(urdf).name]
     )
 
 
 #: A child that runs ``pincal calibrate`` whose fit waits to be interrupted.
 _CHILD = """
 import sys, time
-import pincal.pipeline
+import pincal.auto.pipeline
 from pincal.cli import main
 
 def slow_solve(*args, **kwargs):
     print("fitting", file=sys.__stdout__, flush=True)  # the command's own stdout waits for its end
     time.sleep(60)
 
-pincal.pipeline.solve = slow_solve
+pincal.auto.pipeline.solve = slow_solve
 sys.exit(main(sys.argv[1:]))
 """
 
@@ -324,7 +326,7 @@ def test_atomic_write_refuses_what_is_not_a_regular_file(tmp_path: Path) -> None
     os.mkfifo(tmp_path / "pipe")
     for path in (tmp_path / "pipe", tmp_path, Path("-")):
         with pytest.raises(pincal.OutputError):
-            pincal.data.atomic_write(path, "x")
+            pincal.data.dataset.atomic_write(path, "x")
     assert stat.S_ISFIFO((tmp_path / "pipe").stat().st_mode)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["pipe"]
 

@@ -30,7 +30,7 @@ def test_gao2013_distance_calibration_cross_validated() -> None:
     """
     data, nominal = pincal.gao2013_data()
     assert len(data) == 28 and nominal.shape == (28, 3)
-    cv = pincal.cross_validate(
+    cv = pincal.auto.crossval.cross_validate(
         pincal.load_robot("mrres5"), data, "poe", "distance", folds=7, seed=0
     )
     print(
@@ -45,10 +45,10 @@ def test_gao2013_distance_calibration_cross_validated() -> None:
     assert cv.after.mean_mm < cv.before.mean_mm
 
 
-def _zhang_truth(robot: pincal.Robot, seed: int = 0) -> pincal.TrueRobot:
+def _zhang_truth(robot: pincal.Robot, seed: int = 0) -> pincal.simulation.truth.TrueRobot:
     """Zhang et al.'s simulated errors: every free MDH parameter off by a random sign times
     U(0.1, 0.5) mm (lengths) or U(0.5, 2) mrad (angles); base, instrument and tool exact."""
-    model = pincal.make_model("mdh", robot)
+    model = pincal.kinematics.models.make_model("mdh", robot)
     rng = np.random.default_rng(seed)
     x = np.zeros(model.n_params)
     for i, (name, unit) in enumerate(zip(model.names, model.units)):
@@ -56,7 +56,7 @@ def _zhang_truth(robot: pincal.Robot, seed: int = 0) -> pincal.TrueRobot:
             continue
         size = rng.uniform(0.1e-3, 0.5e-3) if unit == "m" else rng.uniform(0.5e-3, 2e-3)
         x[i] = rng.choice([-1.0, 1.0]) * size
-    return pincal.TrueRobot(
+    return pincal.simulation.truth.TrueRobot(
         model=model, x=x, instrument_T_base=pin.SE3.Identity(), tool=pin.SE3.Identity()
     )
 
@@ -67,9 +67,7 @@ def zhang() -> pincal.Calibration:
     robot = pincal.load_robot("zu3")
     truth = _zhang_truth(robot, seed=0)
     assert np.count_nonzero(truth.x) == 5 * robot.n_joints - len(truth.model.held)
-    _, fit, test = pincal.simulate(
-        robot, 50, 100, seed=0, noise=2e-5, rot_noise=1.5e-4, truth=truth
-    )
+    _, fit, test = pincal.simulate(robot, 50, 100, seed=0, noise=2e-5, rot_noise=1.5e-4, truth=truth)
     return pincal.calibrate(
         robot,
         fit,

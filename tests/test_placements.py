@@ -20,11 +20,11 @@ import pytest
 
 import pincal
 from pincal.cli import main
-from pincal.evaluation import misplaced_rows
-from pincal.fixed_points import placed_distances, point_errors
-from pincal.point_files import read_socket_folder
-from pincal.report import placements, report_json, report_warnings
-from pincal.simulation import TrueRobot, ball_positions, points_truth, simulate_points
+from pincal.data.point_files import read_socket_folder
+from pincal.identify.evaluation import misplaced_rows
+from pincal.identify.fixed_points import placed_distances, point_errors
+from pincal.report.report import placements, report_json, report_warnings
+from pincal.simulation.truth import TrueRobot, ball_positions, points_truth, simulate_points
 
 NOISE = 5e-5  # 1σ per coordinate of where the hand holds the ball [m]
 DISTANCE = 0.05  # between the two sockets of the fixture [m]

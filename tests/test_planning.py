@@ -21,18 +21,19 @@ import pytest
 from cli_run import one_error_line, run
 
 import pincal
-from pincal.candidates import perturbed
+import pincal.planning.plan
 from pincal.cli import main
-from pincal.data import read_table
-from pincal.design import _change, exchange, greedy, information, loss, swap
-from pincal.information import Information
-from pincal.kinematics import Chain, forward
-from pincal.planning import _design, _equations, candidate_poses, plan_poses, safe_poses, write_poses
+from pincal.data.dataset import read_table
+from pincal.kinematics.chain import Chain, forward
+from pincal.planning.candidates import perturbed
+from pincal.planning.design import _change, exchange, greedy, information, loss, swap
+from pincal.planning.information import Information
+from pincal.planning.plan import _design, _equations, candidate_poses, plan_poses, safe_poses, write_poses
 
 SEEDS = range(10)
 
 
-def _trial(robot: pincal.Robot, n: int, seed: int) -> tuple[pincal.planning.Plan, float, float]:
+def _trial(robot: pincal.Robot, n: int, seed: int) -> tuple[pincal.planning.plan.Plan, float, float]:
     truth = pincal.random_truth(robot, seed)
     plan = plan_poses(robot, n, seed=seed, tool=np.round(truth.tool.translation, 2))
     test = truth.measure(candidate_poses(robot, 1000, 10_000 + seed), 3e-5, None, 20_000 + seed)
@@ -44,7 +45,7 @@ def _trial(robot: pincal.Robot, n: int, seed: int) -> tuple[pincal.planning.Plan
 
 
 @pytest.fixture(scope="module")
-def trials_20(get_robot) -> list[tuple[pincal.planning.Plan, float, float]]:
+def trials_20(get_robot) -> list[tuple[pincal.planning.plan.Plan, float, float]]:
     return [_trial(get_robot("ur5"), 20, seed) for seed in SEEDS]
 
 
@@ -229,8 +230,10 @@ def test_plan_does_not_rest_on_the_tool_guess(get_robot) -> None:
     told = plan_poses(robot, 20, candidates=500, seed=2, tool=true_point, tool_tolerance=0.0)
     info = Information(robot, "placements", "position", told.candidates, [true_point])
     weight = info.task_weights(candidate_poses(robot, 200, 3), [true_point])[0]
-    error = {k: _design(info, d.q, None, weight).model_rms_mm for k, d in (("blind", blind.planned),
-             ("told", told.planned), ("random", told.random))}
+    error = {
+        k: _design(info, d.q, None, weight).model_rms_mm
+        for k, d in (("blind", blind.planned), ("told", told.planned), ("random", told.random))
+    }
     assert error["blind"] < 0.9 * error["random"]
     assert error["blind"] < 1.1 * error["told"]
 
@@ -240,7 +243,12 @@ def test_fixed_point_plan_reaches_the_sockets(get_robot, tmp_path) -> None:
     sockets = np.array([[0.5, 0.0, 0.1], [0.55, 0.0, 0.1]])
     ball = np.array([0.0, 0.0, 0.1])
     plan = plan_poses(
-        robot, 30, measure="points", sockets=sockets, point_distances=(("0", "1", 0.05),), tool=ball,
+        robot,
+        30,
+        measure="points",
+        sockets=sockets,
+        point_distances=(("0", "1", 0.05),),
+        tool=ball,
         candidates=200,
     )
     assert plan.sockets is not None and set(plan.sockets.tolist()) == {0, 1}

@@ -1,4 +1,4 @@
-"""A calibration that cannot be right says so (issue 17): :mod:`pincal.plausibility` on the
+"""A calibration that cannot be right says so (issue 17): :mod:`pincal.plausibility.judge` on the
 silent wrong answers of a hostile battery, each built from simulated data
 (:func:`pincal.random_truth` measured, written as CSV, run through :func:`pincal.cli.main`):
 
@@ -26,7 +26,7 @@ import pytest
 
 import pincal
 from pincal.cli import main
-from pincal.tool import euler_zyx
+from pincal.tool.tcp import euler_zyx
 
 FAST = ("--params", "all", "--nested", "no")
 
@@ -71,7 +71,7 @@ def ur5() -> pincal.Robot:
 
 
 @pytest.fixture(scope="module")
-def truth(ur5: pincal.Robot) -> pincal.TrueRobot:
+def truth(ur5: pincal.Robot) -> pincal.simulation.truth.TrueRobot:
     return pincal.random_truth(ur5, seed=1)
 
 
@@ -90,7 +90,7 @@ def write(folder: Path, name: str, data: pincal.Dataset) -> Path:
 
 
 def test_degrees_read_as_radians(
-    run: RunCli, ur5: pincal.Robot, truth: pincal.TrueRobot, tmp_path: Path
+    run: RunCli, ur5: pincal.Robot, truth: pincal.simulation.truth.TrueRobot, tmp_path: Path
 ) -> None:
     """Small joint motions written in degrees, read as radians (within the URDF limits and the
     points' spread check): refused with "pass --degrees"; read as degrees, plausible."""
@@ -114,7 +114,9 @@ def test_larger_degree_motions_named_before_the_fit(
     refused(run("calibrate", "panda", path, *FAST), "degrees read as radians: pass --degrees")
 
 
-def test_x_and_y_swapped(run: RunCli, truth: pincal.TrueRobot, poses: np.ndarray, tmp_path: Path) -> None:
+def test_x_and_y_swapped(
+    run: RunCli, truth: pincal.simulation.truth.TrueRobot, poses: np.ndarray, tmp_path: Path
+) -> None:
     """A mirror no registration undoes: refused with "x and y look swapped"."""
     data = truth.measure(poses, 3e-5, seed=2)
     swapped = replace(data, points=data.points[:, [1, 0, 2]])
@@ -122,7 +124,7 @@ def test_x_and_y_swapped(run: RunCli, truth: pincal.TrueRobot, poses: np.ndarray
 
 
 def test_quaternion_in_xyzw_order(
-    run: RunCli, truth: pincal.TrueRobot, poses: np.ndarray, tmp_path: Path
+    run: RunCli, truth: pincal.simulation.truth.TrueRobot, poses: np.ndarray, tmp_path: Path
 ) -> None:
     """x,y,z,w quaternions under qw,qx,qy,qz: refused by name; ``--quaternion-order xyzw`` reads
     them right and the calibration is plausible (and fits to the noise)."""
@@ -139,7 +141,7 @@ def test_quaternion_in_xyzw_order(
 
 
 def test_noise_as_large_as_the_robot(
-    run: RunCli, truth: pincal.TrueRobot, poses: np.ndarray, tmp_path: Path
+    run: RunCli, truth: pincal.simulation.truth.TrueRobot, poses: np.ndarray, tmp_path: Path
 ) -> None:
     """1 m of noise on a 1.3 m arm: refused, naming the scatter (noise)."""
     path = write(tmp_path, "noise.csv", truth.measure(poses, 1.0, seed=5))
@@ -148,7 +150,7 @@ def test_noise_as_large_as_the_robot(
 
 @pytest.mark.parametrize("size", [0.005, 0.05])
 def test_thirty_percent_outliers(
-    run: RunCli, truth: pincal.TrueRobot, poses: np.ndarray, tmp_path: Path, size: float
+    run: RunCli, truth: pincal.simulation.truth.TrueRobot, poses: np.ndarray, tmp_path: Path, size: float
 ) -> None:
     """A third of the poses off by millimetres or centimetres: more than the screen leaves out,
     refused as outliers; a robust loss fits the rest and is not refused."""
@@ -163,7 +165,7 @@ def test_thirty_percent_outliers(
 
 
 def test_instrument_frame_base_for_data_in_another_frame(
-    run: RunCli, truth: pincal.TrueRobot, poses: np.ndarray, tmp_path: Path
+    run: RunCli, truth: pincal.simulation.truth.TrueRobot, poses: np.ndarray, tmp_path: Path
 ) -> None:
     """The tracker's frame claimed to be the base (a 3 m correction follows): refused with
     "drop --instrument-frame base"; without it, plausible."""
@@ -176,7 +178,7 @@ def test_instrument_frame_base_for_data_in_another_frame(
 
 
 def test_lock_of_a_moving_joint(
-    run: RunCli, truth: pincal.TrueRobot, poses: np.ndarray, tmp_path: Path
+    run: RunCli, truth: pincal.simulation.truth.TrueRobot, poses: np.ndarray, tmp_path: Path
 ) -> None:
     """``--lock`` of a joint whose column is there and moves: refused before any fit."""
     path = write(tmp_path, "all.csv", truth.measure(poses, 3e-5, seed=2))
@@ -185,7 +187,11 @@ def test_lock_of_a_moving_joint(
 
 @pytest.mark.parametrize("keep", [("qw", "qx", "qy"), ("qx",)])
 def test_partial_quaternion(
-    run: RunCli, truth: pincal.TrueRobot, poses: np.ndarray, tmp_path: Path, keep: tuple[str, ...]
+    run: RunCli,
+    truth: pincal.simulation.truth.TrueRobot,
+    poses: np.ndarray,
+    tmp_path: Path,
+    keep: tuple[str, ...],
 ) -> None:
     """Some but not all of qw,qx,qy,qz: an error naming the missing ones, never position data."""
     full = write(tmp_path, "pose.csv", truth.measure(poses, 3e-5, rot_noise=1e-4, seed=4))
@@ -198,7 +204,7 @@ def test_partial_quaternion(
 
 
 def test_accept_implausible_keeps_it_with_a_warning(
-    run: RunCli, truth: pincal.TrueRobot, poses: np.ndarray, tmp_path: Path
+    run: RunCli, truth: pincal.simulation.truth.TrueRobot, poses: np.ndarray, tmp_path: Path
 ) -> None:
     """``--accept-implausible``: exit 0, one warning naming the cause, the report's verdict says
     why, and the contract's keys are all there."""
@@ -241,7 +247,7 @@ def test_large_real_errors_are_not_refused(
 
 
 def test_verdict_in_the_report_of_a_plausible_fit(
-    run: RunCli, truth: pincal.TrueRobot, poses: np.ndarray, tmp_path: Path
+    run: RunCli, truth: pincal.simulation.truth.TrueRobot, poses: np.ndarray, tmp_path: Path
 ) -> None:
     """A clean fit's report holds the verdict: every check passed, each with its margin (null:
     infinite, a value of 0)."""

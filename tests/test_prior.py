@@ -1,5 +1,5 @@
-"""The pull toward the URDF chosen from the data (:mod:`pincal.prior`) and the guard
-(:mod:`pincal.guard`), on seeded simulated truths.
+"""The pull toward the URDF chosen from the data (:mod:`pincal.identify.prior`) and the guard
+(:mod:`pincal.identify.guard`), on seeded simulated truths.
 
 - The evidence formula against an independent computation (the Gaussian marginal likelihood of
   a linear problem, integrated in closed form over the pulled unknowns).
@@ -22,11 +22,11 @@ import pytest
 
 import pincal
 from pincal.cli import main
-from pincal.data import write_csv
+from pincal.data.dataset import write_csv
 from pincal.errors import DataError
-from pincal.prior import WEIGHTS, evidence_curve, log_evidence, parse_prior
-from pincal.simulation import TrueRobot, points_truth, simulate_points
-from pincal.solver import identifiable_set, register, set_up, solve
+from pincal.identify.prior import WEIGHTS, evidence_curve, log_evidence, parse_prior
+from pincal.identify.solver import identifiable_set, register, set_up, solve
+from pincal.simulation.truth import TrueRobot, points_truth, simulate_points
 
 NOISE = 5e-5  # [m] 1σ per coordinate of where the hand holds the ball
 DISTANCES = (("0", "1", 0.05),)

@@ -26,7 +26,8 @@ import numpy as np
 import pytest
 
 import pincal
-from pincal.report import report_warnings
+import pincal.identify.solver
+from pincal.report.report import report_warnings
 
 SEED = 0
 N_FIT = 60
@@ -51,7 +52,7 @@ ROTATION_FLOOR_MRAD = ROT_NOISE * 1e3 * math.sqrt(3)
 #: How far above a noise floor the held-out error may sit.
 FLOOR_FACTOR = 1.2
 #: Noise-free data are fitted to this [mm]: the prior that holds each geometric correction near
-#: the URDF (:data:`pincal.solver.PRIOR_WEIGHT`) biases the fit by about 2e-6 mm here.
+#: the URDF (:data:`pincal.identify.solver.PRIOR_WEIGHT`) biases the fit by about 2e-6 mm here.
 EXACT_MM = 1e-5
 
 
@@ -63,7 +64,7 @@ def _robot(name: str) -> pincal.Robot:
 @cache
 def _experiment(
     name: str, noise: float, rot_noise: float | None = None
-) -> tuple[pincal.TrueRobot, pincal.Dataset, pincal.Dataset]:
+) -> tuple[pincal.simulation.truth.TrueRobot, pincal.Dataset, pincal.Dataset]:
     """The seeded truth, fitted poses and held-out poses of one robot (computed once)."""
     return pincal.simulate(
         _robot(name), n_fit=N_FIT, n_test=N_TEST, seed=SEED, noise=noise, rot_noise=rot_noise
@@ -71,9 +72,7 @@ def _experiment(
 
 
 @cache
-def _calibration(
-    name: str, model: str, noise: float, measure: str | None = None
-) -> pincal.Calibration:
+def _calibration(name: str, model: str, noise: float, measure: str | None = None) -> pincal.Calibration:
     """Calibration of ``model`` on the fitted poses, judged on the held-out ones (computed once)."""
     _, fit, test = _experiment(name, noise)
     return pincal.calibrate(_robot(name), fit, model, measure, test=test)
@@ -112,7 +111,7 @@ def test_position_data_predict_truth_better_than_one_measurement(robot: str, mod
 @pytest.mark.parametrize("robot", ROBOTS)
 def test_noise_free_data_are_fitted_exactly(robot: str, model: str, measure: str) -> None:
     """Without noise every model reproduces the held-out measurements to 1e-5 mm (the weak
-    prior toward the URDF, :data:`pincal.solver.PRIOR_WEIGHT`, leaves a bias of about 2e-6 mm
+    prior toward the URDF, :data:`pincal.identify.solver.PRIOR_WEIGHT`, leaves a bias of about 2e-6 mm
     on these 0.5 mm errors)."""
     cal = _calibration(robot, model, 0.0, measure)
     assert cal.measurement.kind == measure
@@ -212,7 +211,7 @@ def test_corrections_the_data_hardly_see_stay_near_the_urdf(seed: int) -> None:
     """The UR5's last joint moved by ±0.02 rad only: its placement and the measured point are
     nearly one (condition number ~3e5), so least squares alone would wander 40-175 mrad away
     for micrometres of residual and miss varied held-out poses by 4-12 mm. With the weak prior
-    (:data:`pincal.solver.PRIOR_WEIGHT`) the corrections stay within 40 times the truth's
+    (:data:`pincal.identify.solver.PRIOR_WEIGHT`) the corrections stay within 40 times the truth's
     (0.5 mm / 0.5 mrad), the fit at the noise floor, and varied poses within 1 mm."""
     robot = _robot("ur5")
     truth = pincal.random_truth(robot, seed)

@@ -20,9 +20,11 @@ import pytest
 from cli_run import one_error_line, run
 
 import pincal
+import pincal.data.checks
+import pincal.data.dataset
 import pincal.inputs
 from pincal.json_text import json_text
-from pincal.robots import bundled_urdf
+from pincal.robot.robots import bundled_urdf
 from pincal.units import joints_from_file, joints_to_file
 
 FAST = ("--params", "all", "--extend", "none", "--nested", "no")
@@ -320,11 +322,11 @@ def test_the_streamed_reader_reads_what_the_text_says(tmp_path: Path) -> None:
         name = f'"pose, {k}"' if k % 7 == 0 else f"p{k}"
         lines += [f"{float(a)!r},{name},{float(b)!r},{float(c)!r}", "" if k % 13 == 0 else "# note"]
     (tmp_path / "t.csv").write_bytes("\r\n".join(lines).encode())
-    got = pincal.data.read_table(tmp_path / "t.csv", ["a", "b", "c"], "a,b,c")
+    got = pincal.data.dataset.read_table(tmp_path / "t.csv", ["a", "b", "c"], "a,b,c")
     assert np.array_equal(got, values)
     (tmp_path / "bad.csv").write_text("a,b\n1,2\n3,1e999\n")
     with pytest.raises(pincal.errors.DataError, match="row 2, column b: 1e999 is not a finite"):
-        pincal.data.read_table(tmp_path / "bad.csv", ["a", "b"], "a,b")
+        pincal.data.dataset.read_table(tmp_path / "bad.csv", ["a", "b"], "a,b")
 
 
 # --- Units and plausibility -----------------------------------------------------------------------
@@ -344,7 +346,7 @@ def test_joint_values_round_trip_through_the_unit_layer() -> None:
 
 
 def test_compensate_writes_prismatic_joints_in_the_program_units(tmp_path: Path) -> None:
-    from pincal.compensate import Compensation, write_program
+    from pincal.export.compensate import Compensation, write_program
 
     q = np.array([[0.1, 0.25], [0.2, 0.5]])
     result = Compensation(
@@ -498,10 +500,10 @@ def test_a_thousand_fixed_links_do_not_count_as_joints(tmp_path: Path) -> None:
 
 
 def test_the_block_by_block_fit_is_the_dense_fit(monkeypatch: pytest.MonkeyPatch) -> None:
-    """With the thresholds of :mod:`pincal.chunked` lowered to a few hundred poses, the fit, its
+    """With the thresholds of :mod:`pincal.identify.chunked` lowered to a few hundred poses, the fit, its
     standard deviations and its errors are those of the dense solver (to rounding); found on a
     random subset, the identifiable set is the same and the fit's error within 1 %."""
-    import pincal.chunked as chunked
+    import pincal.identify.chunked as chunked
 
     ur5 = pincal.load_robot("ur5")
     q = ur5.random_configurations(400, np.random.default_rng(2), 0.05)
@@ -525,7 +527,7 @@ def test_the_degrees_hint_needs_the_points_to_follow_the_tip() -> None:
     a tool offset follow it; points of another robot, spread alike, do not."""
     import pinocchio as pin
 
-    from pincal.checks import follows
+    from pincal.data.checks import follows
 
     ur5, panda = pincal.load_robot("ur5"), pincal.load_robot("panda")
     q = ur5.random_configurations(200, np.random.default_rng(0), 0.05)
@@ -536,7 +538,9 @@ def test_the_degrees_hint_needs_the_points_to_follow_the_tip() -> None:
     assert follows(tips, points)
     other = panda.random_configurations(200, np.random.default_rng(1), 0.05)
     other_tips = np.array([panda.frame_placement(row).translation for row in other])
-    assert not follows(tips, other_tips * (pincal.checks.spread(tips) / pincal.checks.spread(other_tips)))
+    assert not follows(
+        tips, other_tips * (pincal.data.checks.spread(tips) / pincal.data.checks.spread(other_tips))
+    )
 
 
 def test_a_program_using_the_library_may_rewrite_what_it_read(files: dict[str, Path], tmp_path: Path) -> None:

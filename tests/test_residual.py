@@ -22,9 +22,9 @@ import pytest
 from cli_run import run as run_cli
 
 import pincal
-from pincal.effects import Extension
-from pincal.residual import repeated_noise, residual_verdict
-from pincal.simulation import hide_effect
+from pincal.auto.residual import repeated_noise, residual_verdict
+from pincal.kinematics.effects import Extension
+from pincal.simulation.truth import hide_effect
 
 NOISE = 5e-5  # [m] per axis
 

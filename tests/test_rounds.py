@@ -27,7 +27,7 @@ from finite_differences import tip_jacobian_fd
 from lxml import etree
 
 import pincal
-from pincal.mdh import PARALLEL_TOL
+from pincal.kinematics.mdh import PARALLEL_TOL
 
 ROBOTS = ("ur5", "panda", "zu3")
 ROUNDS = 3
@@ -110,9 +110,9 @@ def test_mdh_table_of_a_calibrated_urdf_uses_beta(get_robot: GetRobot, tmp_path:
         tmp_path: a fresh folder.
         name: the bundled robot.
     """
-    nominal = pincal.make_model("mdh", get_robot(name)).table
+    nominal = pincal.kinematics.models.make_model("mdh", get_robot(name)).table
     robot = _nearly_parallel_robot(get_robot, tmp_path, name)
-    model = pincal.make_model("mdh", robot)
+    model = pincal.kinematics.models.make_model("mdh", robot)
     table = model.table
     assert np.array_equal(table.parallel, nominal.parallel)
     assert np.abs(nominal.beta).max() <= 1e-12  # exactly parallel axes: no tilt
@@ -124,7 +124,7 @@ def test_mdh_table_of_a_calibrated_urdf_uses_beta(get_robot: GetRobot, tmp_path:
     assert np.abs(table.d).max() <= np.abs(nominal.d).max() + 0.01  # no far-away common normal
 
     q = robot.random_configurations(30, np.random.default_rng(3))
-    frames = pincal.forward(model.chain(np.zeros(model.n_params)), q)
+    frames = pincal.kinematics.chain.forward(model.chain(np.zeros(model.n_params)), q)
     for qi, p, r in zip(q, frames.tip_translation, frames.tip_rotation):
         placement = robot.frame_placement(qi)
         assert np.linalg.norm(placement.translation - p) <= 1e-12
@@ -157,10 +157,10 @@ def test_factory_style_urdf_stays_exact(get_robot: GetRobot, tmp_path: Path, mod
     path = tmp_path / "zu3_factory.urdf"
     tree.write(str(path))
     robot = pincal.load_robot(str(path), tip=source.tip)
-    mdh = pincal.make_model("mdh", robot)
+    mdh = pincal.kinematics.models.make_model("mdh", robot)
     assert np.abs(mdh.table.beta).max() > 0.01
     q = robot.random_configurations(30, np.random.default_rng(6))
-    frames = pincal.forward(mdh.chain(np.zeros(mdh.n_params)), q)
+    frames = pincal.kinematics.chain.forward(mdh.chain(np.zeros(mdh.n_params)), q)
     for qi, p in zip(q, frames.tip_translation):
         assert np.linalg.norm(robot.frame_placement(qi).translation - p) <= 1e-12
     _rounds(robot, model, tmp_path)
@@ -174,10 +174,12 @@ def test_mdh_jacobian_with_nominal_beta(get_robot: GetRobot, tmp_path: Path) -> 
         tmp_path: a fresh folder.
     """
     robot = _nearly_parallel_robot(get_robot, tmp_path, "zu3")
-    model = pincal.make_model("mdh", robot)
+    model = pincal.kinematics.models.make_model("mdh", robot)
     rng = np.random.default_rng(4)
     x = rng.normal(0.0, 1e-3, model.n_params)
     q = robot.random_configurations(5, rng)
-    jac = pincal.tip_jacobian(pincal.forward(model.chain(x), q), model.twists(x))
+    jac = pincal.kinematics.chain.tip_jacobian(
+        pincal.kinematics.chain.forward(model.chain(x), q), model.twists(x)
+    )
     fd = tip_jacobian_fd(model, x, q, step=1e-6)
     assert np.abs(jac - fd).max() <= 1e-6 * np.abs(jac).max()

@@ -1,4 +1,4 @@
-"""Tests of :mod:`pincal.selection`: forward selection of model parameters by cross-validation.
+"""Tests of :mod:`pincal.auto.selection`: forward selection of model parameters by cross-validation.
 
 - Sparse truth: a simulated UR5 whose URDF is wrong in only three joint-placement parameters
   (1 mm or 2 mrad each), unknown instrument pose and reflector, 0.03 mm noise, 40 fitted poses.
@@ -7,7 +7,7 @@
   themselves may differ), its cross-validated RMS falls to the noise floor, and on 60 new poses
   the chosen model predicts no worse than fitting every identifiable parameter.
 - The closed-form (linearised) leave-one-out RMS equals the nonlinear one of
-  :func:`pincal.cross_validate` refitting each fold, within 2 %, for position and distance data.
+  :func:`pincal.auto.crossval.cross_validate` refitting each fold, within 2 %, for position and distance data.
 - Only the data given is used: leave-one-out selection does not depend on the order of the
   poses, and in :func:`cross_validate_selection` corrupting one fold's held-out poses leaves
   that fold's chosen set unchanged.
@@ -22,11 +22,11 @@ import numpy as np
 import pytest
 
 import pincal
-from pincal.crossval import fold_indices, held_out_rows
-from pincal.models import PlacementsModel
-from pincal.selection import Selection, cross_validate_selection, select_parameters
-from pincal.simulation import TrueRobot, points_truth, simulate_points
-from pincal.solver import set_up
+from pincal.auto.crossval import fold_indices, held_out_rows
+from pincal.auto.selection import Selection, cross_validate_selection, select_parameters
+from pincal.identify.solver import set_up
+from pincal.kinematics.models import PlacementsModel
+from pincal.simulation.truth import TrueRobot, points_truth, simulate_points
 
 NOISE = 3e-5  # 1σ of each measured coordinate [m]
 NOISE_FLOOR_MM = NOISE * 1e3 * np.sqrt(3.0)  # RMS of a 3-D noise vector [mm]
@@ -95,7 +95,9 @@ def test_linearised_leave_one_out_matches_refits(get_robot: Callable[[str], pinc
     robot = get_robot("ur5")
     _, fit, _ = sparse_experiment(robot, 3)
     sel = select_parameters(robot, fit, "placements", max_params=6)
-    cv = pincal.cross_validate(robot, fit, "placements", folds=len(fit), params=list(sel.chosen))
+    cv = pincal.auto.crossval.cross_validate(
+        robot, fit, "placements", folds=len(fit), params=list(sel.chosen)
+    )
     assert cv.after.rms_mm == pytest.approx(sel.cv_rms_mm, rel=0.02)
     assert len(sel.path) == 7  # max_params ends the path
 
@@ -106,7 +108,9 @@ def test_distance_data_kfold_matches_refits() -> None:
     sel = select_parameters(robot, data, "poe", "distance", folds=7, seed=0)
     assert 0 < len(sel.chosen) < len(sel.path) - 1
     assert sel.cv_rms_mm < sel.path[0].cv_rms_mm
-    cv = pincal.cross_validate(robot, data, "poe", "distance", folds=7, seed=0, params=list(sel.chosen))
+    cv = pincal.auto.crossval.cross_validate(
+        robot, data, "poe", "distance", folds=7, seed=0, params=list(sel.chosen)
+    )
     assert cv.after.rms_mm == pytest.approx(sel.cv_rms_mm, rel=0.02)
     assert sel.to_dict()["chosen"] == list(sel.chosen)
 

@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 
 import pincal
+import pincal.data.dataset
 from pincal.cli import main
 
 TIMEOUT = 120  # [s] a child process still running then has hung
@@ -213,12 +214,12 @@ def test_a_regular_file_is_read_whole_once(
         return real(path, what)
 
     monkeypatch.setattr(pincal.files, "read_input_text", counted)
-    monkeypatch.setattr(pincal.data, "read_input_text", counted)
+    monkeypatch.setattr(pincal.data.dataset, "read_input_text", counted)
     assert main(["calibrate", "ur5", str(data), *FIT]) == 0, capsys.readouterr().err
     assert whole.count(str(data)) == 1
-    assert pincal.data.csv_columns(data) == csv_text.splitlines()[0].split(",")
+    assert pincal.data.dataset.csv_columns(data) == csv_text.splitlines()[0].split(",")
     assert whole.count(str(data)) == 1
     for text in ("", "# only a comment\n\n"):  # no header line: the empty file's one message
         data.write_text(text, encoding="utf-8")
         with pytest.raises(pincal.DataError, match="is empty"):
-            pincal.data.csv_columns(data)
+            pincal.data.dataset.csv_columns(data)

@@ -8,7 +8,7 @@ in-process through :func:`pincal.cli.main` with its output captured by ``capsys`
 
 Rotations in the CSVs are written as Euler angles in degrees with R = Rz(a) Ry(b) Rx(c) (the
 contract's convention), computed here with Pinocchio's ``rpy`` functions, independently of
-:func:`pincal.tool.euler_zyx`.
+:func:`pincal.tool.tcp.euler_zyx`.
 """
 
 from __future__ import annotations
@@ -23,8 +23,9 @@ import pinocchio as pin
 import pytest
 
 import pincal
+import pincal.tool.tcp
 from pincal.cli import main
-from pincal.tool import calibrate_tool
+from pincal.tool.tcp import calibrate_tool
 
 #: Table 1 of Xiong 2012: flange poses x, y, z [mm], a, b, c [deg]. Rows 1-4 are the TCP poses,
 #: rows 4-6 the Z/X orientation rows (origin, +X move, +Z move); row 4 is shared.
@@ -144,9 +145,7 @@ def _assert_paper_result(result: dict) -> None:
     rotation = np.array(result["rotation"])
     assert rotation.shape == (3, 3)
     printed_zero = PAPER_ROTATION == 0.0
-    np.testing.assert_array_equal(
-        np.round(rotation[~printed_zero], 3), PAPER_ROTATION[~printed_zero]
-    )
+    np.testing.assert_array_equal(np.round(rotation[~printed_zero], 3), PAPER_ROTATION[~printed_zero])
     # Printed zeros: |entry| < 0.005, not 0 (A = 179.8 deg in rows 4-6, see the docstring).
     assert np.all(np.abs(rotation[printed_zero]) < 0.005), rotation
 
@@ -167,9 +166,7 @@ def test_paper_example_with_original_columns(
     """``--columns`` maps the paper's own header and gives the same result."""
     original = _write_csv(tmp_path / "original.csv", PAPER_HEADER, PAPER_POSES)
     mapping = ",".join(f"{k}={v}" for k, v in zip(EULER_HEADER, PAPER_HEADER))
-    result = _tcp_json(
-        capsys, original, "--orientation", "zx", "--units", "mm", "--columns", mapping
-    )
+    result = _tcp_json(capsys, original, "--orientation", "zx", "--units", "mm", "--columns", mapping)
     assert result["units"] == "mm"
     _assert_paper_result(result)
     renamed = _tcp_json(capsys, paper_csv, "--orientation", "zx", "--units", "mm")
@@ -204,9 +201,7 @@ def test_paper_zero_entries_come_from_the_a_of_179_8_deg(
     )
     rotation = np.array(exact["rotation"])
     assert np.all(np.abs(rotation[printed_zero]) < 1e-3), rotation
-    np.testing.assert_array_equal(
-        np.round(rotation[~printed_zero], 3), PAPER_ROTATION[~printed_zero]
-    )
+    np.testing.assert_array_equal(np.round(rotation[~printed_zero], 3), PAPER_ROTATION[~printed_zero])
 
 
 def test_paper_fit_error_is_eq_10(capsys: pytest.CaptureFixture[str], paper_csv: Path) -> None:
@@ -215,9 +210,7 @@ def test_paper_fit_error_is_eq_10(capsys: pytest.CaptureFixture[str], paper_csv:
     poses = np.array(PAPER_POSES)[:4]  # the four TCP poses
     rot, pos = _paper_rotations(poses), poses[:, :3]
     n = len(rot)
-    lhs = 2 * (n - 1) * np.eye(3) - sum(
-        rot[i].T @ rot[i + 1] + rot[i + 1].T @ rot[i] for i in range(n - 1)
-    )
+    lhs = 2 * (n - 1) * np.eye(3) - sum(rot[i].T @ rot[i + 1] + rot[i + 1].T @ rot[i] for i in range(n - 1))
     # Eq. 9 as printed drops the transpose of (R_i - R_{i+1}); A^T b needs it.
     rhs = sum((rot[i] - rot[i + 1]).T @ (pos[i + 1] - pos[i]) for i in range(n - 1))
     tcp = np.linalg.solve(lhs, rhs)
@@ -267,8 +260,7 @@ def test_tcp_std_matches_the_spread_of_the_tcp(seed: int) -> None:
     tcp, point = np.array([0.02, -0.01, 0.25]), np.array([0.5, 0.1, 0.2])
     rotations, positions = _touch_poses(rng, tcp, point, 8)
     draws = [
-        calibrate_tool(rotations, positions + rng.normal(0.0, 0.05e-3, positions.shape))
-        for _ in range(2000)
+        calibrate_tool(rotations, positions + rng.normal(0.0, 0.05e-3, positions.shape)) for _ in range(2000)
     ]
     spread = np.std([d.tcp for d in draws], axis=0)
     reported = np.sqrt(np.mean([d.tcp_std**2 for d in draws], axis=0))
@@ -300,16 +292,12 @@ def test_two_poses_are_refused(capsys: pytest.CaptureFixture[str], tmp_path: Pat
     """Two TCP poses: R1 - R2 is singular, at least 3 poses are needed."""
     rng = np.random.default_rng(0)
     rotations, positions = _touch_poses(rng, np.array([0.0, 0.0, 0.2]), np.array([0.5, 0, 0.1]), 2)
-    line = _single_error(
-        _run(capsys, "tcp", _write_poses(tmp_path / "p.csv", rotations, positions))
-    )
+    line = _single_error(_run(capsys, "tcp", _write_poses(tmp_path / "p.csv", rotations, positions)))
     assert "singular" in line and "at least 3" in line
 
 
 @pytest.mark.parametrize("seed", [0, 1])
-def test_one_rotation_axis_is_refused(
-    capsys: pytest.CaptureFixture[str], tmp_path: Path, seed: int
-) -> None:
+def test_one_rotation_axis_is_refused(capsys: pytest.CaptureFixture[str], tmp_path: Path, seed: int) -> None:
     """Flange orientations that all turn about one axis leave the TCP along it unknown."""
     rng = np.random.default_rng(seed)
     tcp, point = np.array([0.01, 0.02, 0.2]), np.array([0.5, 0.0, 0.1])
@@ -331,17 +319,13 @@ def _orientation_rows(
 
 
 @pytest.mark.parametrize("short", ["X", "Z"])
-def test_short_move_is_refused(
-    capsys: pytest.CaptureFixture[str], tmp_path: Path, short: str
-) -> None:
+def test_short_move_is_refused(capsys: pytest.CaptureFixture[str], tmp_path: Path, short: str) -> None:
     """A +X or +Z move of 1 mm (data in mm) is too short to give a direction."""
     rng = np.random.default_rng(5)
     tcp_rows = _touch_poses(rng, np.array([10.0, -5.0, 250.0]), np.array([600.0, 0.0, 300.0]), 4)
     axes = tcp_rows[0][-1]  # tool = flange axes, in the base frame
     length = {"X": 1.0 if short == "X" else 50.0, "Z": 1.0 if short == "Z" else 50.0}
-    rotations, positions = _orientation_rows(
-        tcp_rows, [length["X"] * axes[:, 0], length["Z"] * axes[:, 2]]
-    )
+    rotations, positions = _orientation_rows(tcp_rows, [length["X"] * axes[:, 0], length["Z"] * axes[:, 2]])
     csv = _write_poses(tmp_path / "p.csv", rotations, positions)
     line = _single_error(_run(capsys, "tcp", csv, "--orientation", "zx", "--units", "mm"))
     assert "move" in line and f"+{short}" in line
@@ -368,9 +352,7 @@ def test_missing_columns_are_refused(capsys: pytest.CaptureFixture[str], tmp_pat
 def test_near_degenerate_poses_warn(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     """Poses turned about one axis, one tilted 1 deg about a second: a warning, no refusal."""
     tcp, point = np.array([0.01, 0.02, 0.2]), np.array([0.5, 0.0, 0.1])
-    rotations = np.array(
-        [pin.exp3(np.array([0.0, 0.0, t])) @ TOOL_DOWN for t in (0.0, 1.0, 2.0, 3.0)]
-    )
+    rotations = np.array([pin.exp3(np.array([0.0, 0.0, t])) @ TOOL_DOWN for t in (0.0, 1.0, 2.0, 3.0)])
     rotations[-1] = pin.exp3(np.array([np.deg2rad(1.0), 0.0, 0.0])) @ rotations[-1]
     csv = _write_poses(tmp_path / "p.csv", rotations, point - rotations @ tcp)
     result = _tcp_json(capsys, csv)
@@ -398,9 +380,7 @@ def test_bad_pose_stands_out(capsys: pytest.CaptureFixture[str], tmp_path: Path,
     tool = calibrate_tool(rotations, positions, "default", scale=1000.0)
     assert int(np.argmax(tool.residuals)) == bad, tool.residuals
 
-    run = _run(
-        capsys, "tcp", _write_poses(tmp_path / "p.csv", rotations, positions), "--units", "mm"
-    )
+    run = _run(capsys, "tcp", _write_poses(tmp_path / "p.csv", rotations, positions), "--units", "mm")
     assert run.code == 0, run.err
     pose_lines = [ln for ln in run.out.splitlines() if ln.strip().startswith("pose ")]
     assert len(pose_lines) == 6, run.out
@@ -427,9 +407,7 @@ def test_zx_recovers_the_tool_rotation(seed: int) -> None:
     tcp, point = rng.uniform([-0.05, -0.05, 0.1], [0.05, 0.05, 0.4]), np.array([0.6, 0.1, 0.2])
     tcp_rows = _touch_poses(rng, tcp, point, 5)
     tool_axes = tcp_rows[0][-1] @ tool_rot  # the tool's axes in the base frame at the origin row
-    rotations, positions = _orientation_rows(
-        tcp_rows, [0.05 * tool_axes[:, 0], 0.05 * tool_axes[:, 2]]
-    )
+    rotations, positions = _orientation_rows(tcp_rows, [0.05 * tool_axes[:, 0], 0.05 * tool_axes[:, 2]])
     result = calibrate_tool(rotations, positions, "zx")
     np.testing.assert_allclose(result.rotation, tool_rot, rtol=0.0, atol=1e-9)
     np.testing.assert_allclose(result.tcp, tcp, rtol=0.0, atol=1e-9)

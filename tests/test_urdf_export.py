@@ -1,4 +1,4 @@
-"""Tests of the corrected-URDF export (:mod:`pincal.urdf_writer` and ``pincal calibrate -o``).
+"""Tests of the corrected-URDF export (:mod:`pincal.export.urdf_writer` and ``pincal calibrate -o``).
 
 What is checked:
 
@@ -31,8 +31,8 @@ from lxml import etree
 
 import pincal
 from pincal.cli import main
-from pincal.robots import bundled_urdf
-from pincal.urdf_writer import write_corrected_urdf
+from pincal.export.urdf_writer import write_corrected_urdf
+from pincal.robot.robots import bundled_urdf
 
 #: Agreement required between the exported URDF and the identified model [m] and [rad].
 TOL = 1e-9
@@ -631,7 +631,7 @@ HEADS = {
         b'<?xml version="1.0"?>\n<robot\n  xmlns:xacro="http://ros.org/wiki/xacro" name="ur5">'
     ),
     "attributes one per line": b'<robot\n  name="ur5"\n  xmlns:xacro="http://ros.org/wiki/xacro"\n>',
-    "comment naming <robot>": b"<!-- a <robot> of ours -->\n<!-- two\nlines -->\n<robot name=\"ur5\">",
+    "comment naming <robot>": b'<!-- a <robot> of ours -->\n<!-- two\nlines -->\n<robot name="ur5">',
     "doctype": b'<?xml version="1.0"?>\n<!DOCTYPE robot>\n<robot name="ur5">',
     "byte-order mark": b'\xef\xbb\xbf<?xml version="1.0" encoding="UTF-8"?>\n<robot name="ur5">',
     "no declaration": b'<robot name="ur5">',

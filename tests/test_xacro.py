@@ -15,7 +15,7 @@ import pytest
 from cli_run import one_error_line, run
 
 import pincal
-from pincal.descriptions import PackageNotFoundError, find_package
+from pincal.robot.descriptions import PackageNotFoundError, find_package
 
 DATA = Path(__file__).resolve().parent / "data" / "xacro"
 XACRO = DATA / "arm.urdf.xacro"
@@ -160,9 +160,9 @@ def test_a_hostile_expression_is_stopped(
     within the time limit (1 s here), and the command stays usable after it."""
     import time
 
-    import pincal.descriptions
+    import pincal.robot.descriptions
 
-    monkeypatch.setattr(pincal.descriptions, "XACRO_SECONDS", 1.0)
+    monkeypatch.setattr(pincal.robot.descriptions, "XACRO_SECONDS", 1.0)
     hostile = tmp_path / "hostile.urdf.xacro"
     hostile.write_text(
         '<?xml version="1.0"?>\n<robot xmlns:xacro="http://www.ros.org/wiki/xacro" '

@@ -16,13 +16,13 @@ from importlib import resources
 
 import numpy as np
 
-from .crossval import cross_validate
-from .data import Dataset
-from .evaluation import evaluate
-from .options import MODELS
-from .pipeline import calibrate
-from .robots import load_robot
-from .simulation import simulate
+from pincal.auto.crossval import cross_validate
+from pincal.auto.pipeline import calibrate
+from pincal.data.dataset import Dataset
+from pincal.identify.evaluation import evaluate
+from pincal.options import MODELS
+from pincal.robot.robots import load_robot
+from pincal.simulation.truth import simulate
 
 
 def gao2013_data() -> tuple[Dataset, np.ndarray]:

@@ -36,7 +36,7 @@ class OutputError(PincalError):
 
 
 class ImplausibleError(PincalError):
-    """The result cannot be right (:mod:`pincal.plausibility`): the message names the likely
+    """The result cannot be right (:mod:`pincal.plausibility.judge`): the message names the likely
     cause and the fix."""
 
 

@@ -31,8 +31,8 @@ from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 
-from .errors import DataError, OutputError
-from .inputs import forget_run_inputs, input_named, note_input, read_bytes
+from pincal.errors import DataError, OutputError
+from pincal.inputs import forget_run_inputs, input_named, note_input, read_bytes
 
 #: Largest input file read [bytes] (a measurement CSV of a million poses is about 100 MB).
 MAX_INPUT_BYTES = 500_000_000

@@ -26,7 +26,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from .errors import DataError, PincalError
+from pincal.errors import DataError, PincalError
 
 #: Longest wait for the writer of a named pipe given as an input [s].
 PIPE_WAIT_SECONDS = 5.0

@@ -17,7 +17,7 @@ from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any, TypeVar
 
-from .errors import PincalError, RobotError
+from pincal.errors import PincalError, RobotError
 
 T = TypeVar("T")
 

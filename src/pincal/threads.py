@@ -5,7 +5,7 @@ blocks): starting and synchronising BLAS threads costs more than it saves. On a 
 OpenBLAS's default threads made ``calibrate`` on 100 poses 7-10 × slower, and a second thread
 (``benchmarks/speed.py``) gains nothing at 1,000 or 10,000 poses and 14 % at 100,000 (the QR
 of a 300,000 × 45 Jacobian). So the library's entry points (:func:`pincal.calibrate`,
-:func:`pincal.diagnose.diagnose`, ...) and the command line run with one BLAS thread unless told
+:func:`pincal.auto.diagnose.diagnose`, ...) and the command line run with one BLAS thread unless told
 otherwise:
 
 - the environment variable ``PINCAL_THREADS``: a number of threads, or ``0`` to leave BLAS as
@@ -21,7 +21,7 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any, TypeVar
 
-from .errors import PincalError
+from pincal.errors import PincalError
 
 #: Environment variable with the number of BLAS threads (0: leave BLAS as it is).
 ENV = "PINCAL_THREADS"

@@ -19,8 +19,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .errors import DataError
-from .options import UNITS
+from pincal.errors import DataError
+from pincal.options import UNITS
 
 #: Farthest a tool centre point may be from the flange [m].
 MAX_TOOL_M = 2.0

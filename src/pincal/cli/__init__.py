@@ -22,10 +22,10 @@ import traceback
 from collections.abc import Iterator, Sequence
 from types import FrameType
 
-from ..errors import PincalError
-from ..files import forget_inputs
-from ..inputs import run_scope
-from .parser import attach_vectors, build_parser
+from pincal.cli.parser import attach_vectors, build_parser
+from pincal.errors import PincalError
+from pincal.files import forget_inputs
+from pincal.inputs import run_scope
 
 #: The parser (under its former private name, for tests that build it).
 _build_parser = build_parser
@@ -91,7 +91,7 @@ def _reserve_closed_channels() -> dict[int, bool]:
 def _run(argv: Sequence[str] | None, stdout_closed: bool = False) -> int:
     """Parse, run the command with its printed text held back, then print it and the warnings."""
     args = build_parser().parse_args(attach_vectors(sys.argv[1:] if argv is None else argv))
-    from ..threads import blas_threads
+    from pincal.threads import blas_threads
 
     command = importlib.import_module(f"{__name__}.{args.command}")  # one module per command
     printed = io.StringIO()  # said when the run ends well: a refused result prints nothing

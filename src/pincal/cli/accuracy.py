@@ -10,16 +10,23 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from ..calibrated_robot import CalibratedRobot, load_calibration
-from ..data import UNITS, Dataset
-from ..errors import DataError
-from ..files import atomic_write_many
-from ..iso9283 import AccuracyResult, iso9283, too_few_cycles
-from ..recording_reader import is_recording
-from ..robots import Robot, load_robot
-from ..visits import Commanded, attained_in_base, by_model, group_visits, pose_labels, programmed
-from .common import check_outputs, load_data, robot_options, urdf_path, warn
-from .recording_data import read_poses
+from pincal.accuracy.iso9283 import AccuracyResult, iso9283, too_few_cycles
+from pincal.accuracy.visits import (
+    Commanded,
+    attained_in_base,
+    by_model,
+    group_visits,
+    pose_labels,
+    programmed,
+)
+from pincal.cli.common import check_outputs, load_data, robot_options, urdf_path, warn
+from pincal.cli.recording_data import read_poses
+from pincal.data.dataset import UNITS, Dataset
+from pincal.data.recording_reader import is_recording
+from pincal.errors import DataError
+from pincal.export.calibrated_robot import CalibratedRobot, load_calibration
+from pincal.files import atomic_write_many
+from pincal.robot.robots import Robot, load_robot
 
 #: The sidecar's suffix: ``--calibration`` may name the sidecar instead of the URDF beside it.
 SIDECAR = ".calibration.json"
@@ -86,7 +93,7 @@ def run(args: argparse.Namespace) -> int:
     print(result.table())
     files: list[tuple[str | Path, str | bytes]] = []
     if args.plot is not None:
-        from ..accuracy_plot import accuracy_png
+        from pincal.accuracy.accuracy_plot import accuracy_png
 
         files.append((args.plot, accuracy_png(result)))
     if args.report is not None:

@@ -8,19 +8,9 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from ..calibration import Calibration
-from ..data import Dataset
-from ..errors import DataError
-from ..files import STDIN, atomic_write_many
-from ..large_choice import choose_on_subset, needs_subset, subset_note
-from ..outcome import Outcome, outcome
-from ..pipeline import calibrate
-from ..report import report_json
-from ..robots import Robot
-from ..summary_table import summary
-from ..ur_yaml import DEFAULT_DH, read_ur_kinematics, robot_ur_chain, write_ur_kinematics
-from ..urdf_writer import check_frame_name, corrected_files, sidecar_path
-from .common import (
+from pincal.auto.large_choice import choose_on_subset, needs_subset, subset_note
+from pincal.auto.pipeline import calibrate
+from pincal.cli.common import (
     chain,
     check_applicable,
     check_outputs,
@@ -32,7 +22,17 @@ from .common import (
     ur_yaml_output,
     urdf_path,
 )
-from .pull_options import pull
+from pincal.cli.pull_options import pull
+from pincal.data.dataset import Dataset
+from pincal.errors import DataError
+from pincal.export.ur_yaml import DEFAULT_DH, read_ur_kinematics, robot_ur_chain, write_ur_kinematics
+from pincal.export.urdf_writer import check_frame_name, corrected_files, sidecar_path
+from pincal.files import STDIN, atomic_write_many
+from pincal.identify.calibration import Calibration
+from pincal.report.outcome import Outcome, outcome
+from pincal.report.report import report_json
+from pincal.report.summary_table import summary
+from pincal.robot.robots import Robot
 
 #: ``--nested`` -> the ``nested`` argument of :func:`pincal.calibrate`.
 NESTED = {"auto": None, "yes": True, "no": False}
@@ -81,7 +81,7 @@ def _fit(
     test: Dataset | None,
     progress: Callable[[int, int, str], None] | None,
 ) -> Calibration:
-    """The calibration the options ask for; above :data:`pincal.large_choice.CHOICE_POSES` poses
+    """The calibration the options ask for; above :data:`pincal.auto.large_choice.CHOICE_POSES` poses
     the automatic choice is made on a random subset, said first (issue 33)."""
     options: dict[str, Any] = dict(
         model=args.model,

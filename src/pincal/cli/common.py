@@ -12,24 +12,24 @@ from typing import TYPE_CHECKING, Any
 
 import pinocchio as pin
 
-from ..checks import check_columns, check_limits, check_scale, small_angles
-from ..data import UNITS, Dataset, csv_columns, read_csv
-from ..errors import DataError, ImplausibleError, OutputError
-from ..files import STDIN, output_target
-from ..fixed_points import parse_point_distances
-from ..inputs import input_named
-from ..kinds import get_kind
-from ..options import ROTATION_WEIGHT
-from ..plausibility import Verdict, judge_calibration
-from ..point_files import read_socket_folder
-from ..recording_reader import is_recording
-from ..robots import BUNDLED, Robot, bundled_urdf, load_robot
-from .data_options import check_lock
-from .past_tip import check_past_tip
-from .recording_data import recording_data, unused_recording_options
+from pincal.cli.data_options import check_lock
+from pincal.cli.past_tip import check_past_tip
+from pincal.cli.recording_data import recording_data, unused_recording_options
+from pincal.data.checks import check_columns, check_limits, check_scale, small_angles
+from pincal.data.dataset import UNITS, Dataset, csv_columns, read_csv
+from pincal.data.point_files import read_socket_folder
+from pincal.data.recording_reader import is_recording
+from pincal.errors import DataError, ImplausibleError, OutputError
+from pincal.files import STDIN, output_target
+from pincal.identify.fixed_points import parse_point_distances
+from pincal.identify.kinds import get_kind
+from pincal.inputs import input_named
+from pincal.options import ROTATION_WEIGHT
+from pincal.plausibility.judge import Verdict, judge_calibration
+from pincal.robot.robots import BUNDLED, Robot, bundled_urdf, load_robot
 
 if TYPE_CHECKING:
-    from ..calibration import Calibration
+    from pincal.identify.calibration import Calibration
 
 
 def urdf_path(robot: str | None) -> Path | None:
@@ -41,7 +41,7 @@ def urdf_path(robot: str | None) -> Path | None:
 
 def ur_yaml_output(args: argparse.Namespace) -> bool:
     """True when ``-o`` names a UR kinematics YAML (``.yaml`` or ``.yml``)."""
-    from ..ur_yaml import is_yaml
+    from pincal.export.ur_yaml import is_yaml
 
     return is_yaml(getattr(args, "output", None))
 
@@ -50,8 +50,8 @@ def robot_options(args: argparse.Namespace) -> dict[str, Any]:
     """Keyword arguments of :func:`pincal.load_robot` from ``--xacro-arg``, ``--package-path``,
     ``--kinematics`` (for a bundled UR written as, or compensated with, a UR YAML:
     ``ur_description``'s default) and ``--inertias``."""
-    from ..descriptions import parse_package_paths, parse_xacro_args
-    from ..ur_yaml import DEFAULT_DH, default_ur_kinematics, is_yaml
+    from pincal.export.ur_yaml import DEFAULT_DH, default_ur_kinematics, is_yaml
+    from pincal.robot.descriptions import parse_package_paths, parse_xacro_args
 
     kinematics = getattr(args, "kinematics", None)
     ur_frames = ur_yaml_output(args) or is_yaml(getattr(args, "calibration", None))
@@ -204,7 +204,7 @@ def check_applicable(args: argparse.Namespace, data: Dataset) -> None:
 
 
 def plausible(cal: Calibration, data: Dataset, args: argparse.Namespace) -> Verdict:
-    """The plausibility verdict on a fit (:mod:`pincal.plausibility`): raised as an error when
+    """The plausibility verdict on a fit (:mod:`pincal.plausibility.judge`): raised as an error when
     the fit cannot be right, or said as a warning with ``--accept-implausible``."""
     order = args.quaternion_order
     verdict = judge_calibration(cal, data, degrees=args.degrees, quaternion_order=order, loss=args.loss)

@@ -6,20 +6,20 @@ import argparse
 
 import numpy as np
 
-from ..errors import DataError
-from ..robots import load_robot
-from ..urdf_writer import sidecar_path
-from .common import check_outputs, robot_options, urdf_path, warn
+from pincal.cli.common import check_outputs, robot_options, urdf_path, warn
+from pincal.errors import DataError
+from pincal.export.urdf_writer import sidecar_path
+from pincal.robot.robots import load_robot
 
 
 def run(args: argparse.Namespace) -> int:
     """Run the command; 0 on success."""
-    from ..calibrated_robot import load_calibration
-    from ..compensate import compensate_program, write_program
-    from ..data import Targets, csv_columns, read_program
-    from ..recording_reader import is_recording
-    from ..recordings import read_static_joints
-    from .recording_data import recording_options
+    from pincal.cli.recording_data import recording_options
+    from pincal.data.dataset import Targets, csv_columns, read_program
+    from pincal.data.recording_reader import is_recording
+    from pincal.data.recordings import read_static_joints
+    from pincal.export.calibrated_robot import load_calibration
+    from pincal.export.compensate import compensate_program, write_program
 
     inputs = {
         "program": args.program,

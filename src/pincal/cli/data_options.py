@@ -10,12 +10,12 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING
 
-from ..errors import DataError
-from ..options import QUATERNION_ORDERS
-from .values import name_list
+from pincal.cli.values import name_list
+from pincal.errors import DataError
+from pincal.options import QUATERNION_ORDERS
 
 if TYPE_CHECKING:
-    from ..robots import Robot
+    from pincal.robot.robots import Robot
 
 
 def add_lock(cmd: argparse.ArgumentParser) -> None:

@@ -6,7 +6,7 @@ import argparse
 from collections.abc import Callable
 from typing import Any
 
-from .numeric import real
+from pincal.cli.numeric import real
 
 
 def noise(text: str) -> float:

@@ -7,7 +7,7 @@ import argparse
 
 def run(args: argparse.Namespace) -> int:
     """Run the command; 0 on success."""
-    from ..demo import run
+    from pincal.demo import run
 
     print(run(seed=args.seed))
     return 0

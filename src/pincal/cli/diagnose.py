@@ -6,13 +6,9 @@ import argparse
 
 import numpy as np
 
-from ..choice import choice_of
-from ..data import atomic_write
-from ..errors import DataError, IdentifiabilityError
-from ..json_text import json_text
-from ..outcome import outcome
-from ..pipeline import calibrate
-from .common import (
+from pincal.auto.choice import choice_of
+from pincal.auto.pipeline import calibrate
+from pincal.cli.common import (
     chain,
     check_applicable,
     check_outputs,
@@ -23,12 +19,16 @@ from .common import (
     progress_line,
     urdf_path,
 )
+from pincal.data.dataset import atomic_write
+from pincal.errors import DataError, IdentifiabilityError
+from pincal.json_text import json_text
+from pincal.report.outcome import outcome
 
 
 def run(args: argparse.Namespace) -> int:
     """Run the command; 0 on success: the diagnosis of ``pincal calibrate --extend auto`` (one
     shared pipeline, so that both name the same cause), its candidates, and what remains."""
-    from ..plots import plot_diagnosis
+    from pincal.report.plots import plot_diagnosis
 
     if args.plots is not None and not args.plots.is_dir():
         raise DataError(f"--plots {args.plots}: the folder does not exist, create it first")
@@ -85,4 +85,3 @@ def run(args: argparse.Namespace) -> int:
         print(f"written to {args.json}")
     print(found.verdict_line())
     return 0
-

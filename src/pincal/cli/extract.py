@@ -7,12 +7,12 @@ import csv
 import io
 from pathlib import Path
 
-from ..data import Dataset
-from ..errors import DataError
-from ..files import atomic_write
-from ..robots import load_robot
-from .common import check_outputs, urdf_path
-from .recording_data import read_poses
+from pincal.cli.common import check_outputs, urdf_path
+from pincal.cli.recording_data import read_poses
+from pincal.data.dataset import Dataset
+from pincal.errors import DataError
+from pincal.files import atomic_write
+from pincal.robot.robots import load_robot
 
 
 def pose_csv(data: Dataset) -> str:

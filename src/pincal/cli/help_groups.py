@@ -76,7 +76,7 @@ def version() -> str:
     try:
         return metadata.version("pincal")
     except metadata.PackageNotFoundError:  # pragma: no cover - run without installing
-        from .. import __version__
+        from pincal import __version__
 
         return __version__
 

@@ -7,8 +7,17 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
-from ..errors import PincalError
-from ..options import (
+from pincal.cli.data_options import add_lock, add_program_quaternion_order
+from pincal.cli.deliver_options import add_baseline_params, add_geometry, add_noise
+from pincal.cli.help_groups import group_options, report_option, version
+from pincal.cli.numeric import folds, fraction, rotation_weight, seed, sigmas, threads
+from pincal.cli.plan_args import add_plan
+from pincal.cli.pull_options import add_pull_options
+from pincal.cli.recording_args import add_accuracy, add_extract, add_recording_options
+from pincal.cli.template import add_template
+from pincal.cli.values import mapping, name_list, parameters, payload, vector3
+from pincal.errors import PincalError
+from pincal.options import (
     BUNDLED,
     LOSSES,
     MEASURES,
@@ -19,15 +28,6 @@ from ..options import (
     THRESHOLD,
     UNITS,
 )
-from .data_options import add_lock, add_program_quaternion_order
-from .deliver_options import add_baseline_params, add_geometry, add_noise
-from .help_groups import group_options, report_option, version
-from .numeric import folds, fraction, rotation_weight, seed, sigmas, threads
-from .plan_args import add_plan
-from .pull_options import add_pull_options
-from .recording_args import add_accuracy, add_extract, add_recording_options
-from .template import add_template
-from .values import mapping, name_list, parameters, payload, vector3
 
 
 class _Parser(argparse.ArgumentParser):

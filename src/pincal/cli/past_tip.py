@@ -17,13 +17,13 @@ from typing import Any
 
 import numpy as np
 
-from ..data import Dataset, csv_columns, read_csv
-from ..errors import DataError, PincalError
-from ..evaluation import evaluate
-from ..readings import IMPROVEMENT, WITHIN
-from ..robots import Robot, load_robot
-from ..solver import register, set_up
-from ..verdict import robot_size, score_mm
+from pincal.data.dataset import Dataset, csv_columns, read_csv
+from pincal.errors import DataError, PincalError
+from pincal.identify.evaluation import evaluate
+from pincal.identify.solver import register, set_up
+from pincal.plausibility.readings import IMPROVEMENT, WITHIN
+from pincal.plausibility.verdict import robot_size, score_mm
+from pincal.robot.robots import Robot, load_robot
 
 
 def joints_after(urdf_text: str, tip: str) -> list[tuple[str, str]]:

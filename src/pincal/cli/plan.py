@@ -8,11 +8,11 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import check_limits
-from ..data import UNITS, Dataset, read_joints
-from ..errors import DataError
-from ..robots import Robot, load_robot
-from .common import check_outputs, robot_options, urdf_path, warn
+from pincal.cli.common import check_outputs, robot_options, urdf_path, warn
+from pincal.data.checks import check_limits
+from pincal.data.dataset import UNITS, Dataset, read_joints
+from pincal.errors import DataError
+from pincal.robot.robots import Robot, load_robot
 
 #: ``--clearance`` when not given [m].
 CLEARANCE = 0.05
@@ -20,8 +20,8 @@ CLEARANCE = 0.05
 
 def run(args: argparse.Namespace) -> int:
     """Run the command; 0 on success."""
-    from ..fixed_points import parse_point_distances
-    from ..planning import plan_poses, write_poses
+    from pincal.identify.fixed_points import parse_point_distances
+    from pincal.planning.plan import plan_poses, write_poses
 
     check_outputs(args, [args.output], {"input URDF": urdf_path(args.robot), "task poses": args.task})
     if args.reach is not None and args.instrument is None:

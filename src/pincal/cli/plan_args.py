@@ -6,9 +6,9 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from ..options import BUNDLED, MEASURES, MODELS, UNITS
-from .numeric import count, height, reach, seed
-from .values import vector3, vectors3
+from pincal.cli.numeric import count, height, reach, seed
+from pincal.cli.values import vector3, vectors3
+from pincal.options import BUNDLED, MEASURES, MODELS, UNITS
 
 
 def add_plan(sub: Any, robot_options: Callable[[Any], None], force: Callable[[Any], None]) -> None:
@@ -25,24 +25,30 @@ def add_plan(sub: Any, robot_options: Callable[[Any], None], force: Callable[[An
     )
     plan.add_argument("--seed", type=seed, default=0)
     plan.add_argument(
-        "--units", choices=sorted(UNITS), default="m",
+        "--units",
+        choices=sorted(UNITS),
+        default="m",
         help="unit of the lengths given below (--tool-point, --tool-tolerance, --sockets, --point-distance, "
         "--clearance, --instrument, --reach); prismatic joints in --task and -o are in metres",
     )
     plan.add_argument(
-        "--criterion", choices=("i", "d"), default="i",
+        "--criterion",
+        choices=("i", "d"),
+        default="i",
         help="i: least mean squared error of the calibrated tip over the task poses (default); "
         "d: largest log det of the information",
     )
     plan.add_argument(
-        "--task", type=Path,
-        help="CSV of the poses the robot will work in, a column per joint (default: its whole workspace)"
+        "--task",
+        type=Path,
+        help="CSV of the poses the robot will work in, a column per joint (default: its whole workspace)",
     )
     plan.add_argument(
         "--tool-point", type=vector3, help="the measured point on the tip, X,Y,Z, roughly [units]"
     )
     plan.add_argument(
-        "--tool-tolerance", type=reach,
+        "--tool-tolerance",
+        type=reach,
         help="how far the real point may be from --tool-point [units] (default 0.01 m; 0.1 m from the tip)",
     )
     plan.add_argument(
@@ -60,7 +66,8 @@ def add_plan(sub: Any, robot_options: Callable[[Any], None], force: Callable[[An
     plan.add_argument("--reach", type=reach, help="with --instrument: its range [units]")
     plan.add_argument("--extend", metavar="EFFECT:JOINT", help="plan for a non-geometric effect too")
     plan.add_argument(
-        "--degrees", action="store_true",
+        "--degrees",
+        action="store_true",
         help="revolute joint values in degrees: those read from --task and those written to -o",
     )
     plan.add_argument("-o", "--output", type=Path, required=True, help="the poses (CSV, a column per joint)")

@@ -1,5 +1,5 @@
 """``pincal calibrate``'s ``--prior`` and ``--force-fit``: the pull toward the URDF and the guard
-(:class:`pincal.guard.Pull`)."""
+(:class:`pincal.identify.guard.Pull`)."""
 
 from __future__ import annotations
 
@@ -7,19 +7,19 @@ import argparse
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from ..guard import Pull
+    from pincal.identify.guard import Pull
 
 
 def pull(args: argparse.Namespace) -> Pull:
-    """The :class:`~pincal.guard.Pull` the options ask for (the weight is checked by the fit)."""
-    from ..guard import Pull  # here: --help loads no NumPy
+    """The :class:`~pincal.identify.guard.Pull` the options ask for (the weight is checked by the fit)."""
+    from pincal.identify.guard import Pull  # here: --help loads no NumPy
 
     return Pull(args.prior, args.force_fit)
 
 
 def add_pull_options(cal: argparse.ArgumentParser) -> None:
-    """``--prior`` and ``--force-fit`` of ``pincal calibrate`` (issue 31: :mod:`pincal.prior`,
-    :mod:`pincal.guard`)."""
+    """``--prior`` and ``--force-fit`` of ``pincal calibrate`` (issue 31: :mod:`pincal.identify.prior`,
+    :mod:`pincal.identify.guard`)."""
     cal.add_argument(
         "--prior",
         default="auto",

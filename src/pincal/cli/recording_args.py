@@ -7,9 +7,9 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from ..options import UNITS
-from .numeric import real
-from .values import vector3
+from pincal.cli.numeric import real
+from pincal.cli.values import vector3
+from pincal.options import UNITS
 
 #: The recording options' defaults (said as ignored when given and no input is a recording).
 DEFAULTS: dict[str, str | float | None] = {

@@ -1,20 +1,20 @@
 """A ROS recording given where a measurement CSV is accepted: its static poses as a
-:class:`pincal.data.Dataset`, read with the command's recording options."""
+:class:`pincal.data.dataset.Dataset`, read with the command's recording options."""
 
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
 
-from ..data import Dataset
-from ..errors import DataError
-from ..recording_reader import is_recording
-from ..recordings import Recording, RecordingOptions, read_recording
-from .recording_args import DEFAULTS
+from pincal.cli.recording_args import DEFAULTS
+from pincal.data.dataset import Dataset
+from pincal.data.recording_reader import is_recording
+from pincal.data.recordings import Recording, RecordingOptions, read_recording
+from pincal.errors import DataError
 
 
 def recording_options(args: argparse.Namespace) -> RecordingOptions:
-    """The :class:`pincal.recordings.RecordingOptions` of the command line."""
+    """The :class:`pincal.data.recordings.RecordingOptions` of the command line."""
     return RecordingOptions(
         joint_topic=args.joint_topic,
         measure_topic=args.measure_topic,
@@ -31,7 +31,7 @@ def read_poses(path: Path, joints: tuple[str, ...] | None, args: argparse.Namesp
 
     Raises:
         DataError: ``--degrees`` or ``--units mm`` (a recording holds radians and metres), or the
-            recording cannot give poses (:func:`pincal.recordings.read_recording`).
+            recording cannot give poses (:func:`pincal.data.recordings.read_recording`).
     """
     if getattr(args, "degrees", False) or getattr(args, "units", "m") != "m":
         raise DataError(

@@ -6,12 +6,12 @@ import argparse
 
 import numpy as np
 
-from ..data import UNITS, atomic_write
-from ..errors import DataError, ImplausibleError
-from ..json_text import json_text
-from ..tool import calibrate_tool, read_flange_poses
-from ..tool_plausibility import judge_tool
-from .common import check_outputs, locked_robot, urdf_path, warn
+from pincal.cli.common import check_outputs, locked_robot, urdf_path, warn
+from pincal.data.dataset import UNITS, atomic_write
+from pincal.errors import DataError, ImplausibleError
+from pincal.json_text import json_text
+from pincal.plausibility.tool_plausibility import judge_tool
+from pincal.tool.tcp import calibrate_tool, read_flange_poses
 
 
 def run(args: argparse.Namespace) -> int:
@@ -65,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
 def _inapplicable(args: argparse.Namespace) -> None:
     """Refuse the options ``tcp`` would ignore in silence (issue 33): ``--inertias`` (no gravity
     torque is computed) and ``--quaternion-order`` for poses without quaternion columns."""
-    from ..data import csv_columns
+    from pincal.data.dataset import csv_columns
 
     named = ["--inertias"] if args.inertias is not None else []
     if args.quaternion_order != "wxyz":

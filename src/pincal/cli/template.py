@@ -7,7 +7,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from ..options import BUNDLED, UNITS
+from pincal.options import BUNDLED, UNITS
 
 #: What adds the shared options to a sub-command (:mod:`pincal.cli.parser`'s).
 Adder = Callable[[argparse.ArgumentParser], None]
@@ -31,10 +31,10 @@ def add_template(sub: Any, robot_options: Adder, force: Adder) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the command; 0 on success."""
-    from ..files import atomic_write
-    from ..robots import load_robot
-    from ..template import csv_template
-    from .common import check_outputs, robot_options, urdf_path
+    from pincal.cli.common import check_outputs, robot_options, urdf_path
+    from pincal.export.template import csv_template
+    from pincal.files import atomic_write
+    from pincal.robot.robots import load_robot
 
     check_outputs(args, [args.output], {"input URDF": urdf_path(args.robot)})
     robot = load_robot(args.robot, tip=args.tip, **robot_options(args))

@@ -7,9 +7,9 @@ import argparse
 import numpy as np
 import pinocchio as pin
 
-from ..errors import RobotError
-from ..robots import load_robot
-from .common import robot_options
+from pincal.cli.common import robot_options
+from pincal.errors import RobotError
+from pincal.robot.robots import load_robot
 
 #: Largest disagreement of the product of exponentials with Pinocchio [m or rad] that is rounding.
 TWIST_TOLERANCE = 1e-6
@@ -17,7 +17,7 @@ TWIST_TOLERANCE = 1e-6
 
 def run(args: argparse.Namespace) -> int:
     """Run the command; 0 on success."""
-    from ..twists import nominal_twists, poe_forward
+    from pincal.kinematics.twists import nominal_twists, poe_forward
 
     robot = load_robot(args.robot, tip=args.tip, **robot_options(args))
     tw = nominal_twists(robot)

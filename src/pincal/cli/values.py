@@ -9,7 +9,7 @@ from typing import Any
 
 
 def payload(text: str) -> Any:
-    from ..effects import Payload  # here: --help does not load Pinocchio
+    from pincal.kinematics.effects import Payload  # here: --help does not load Pinocchio
 
     return Payload.parse(text)
 
@@ -43,8 +43,8 @@ def parameters(text: str) -> str | tuple[str, ...]:
     if text in ("auto", "all"):
         return text
     if text.startswith("@"):
-        from ..errors import PincalError
-        from ..inputs import read_bytes  # a regular file, bounded, and an input of the run (issue 33)
+        from pincal.errors import PincalError
+        from pincal.inputs import read_bytes  # a regular file, bounded, and an input of the run (issue 33)
 
         path = Path(text[1:])
         try:
@@ -73,4 +73,3 @@ def mapping(text: str) -> dict[str, str]:
         raise argparse.ArgumentTypeError(
             f"expected NAME=COLUMN pairs separated by commas, got {text!r}"
         ) from None
-

@@ -1,0 +1,1 @@
+"""ISO 9283 pose accuracy and repeatability."""

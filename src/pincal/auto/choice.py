@@ -1,0 +1,258 @@
+"""What to fit, chosen from the fitted poses alone: ``params="auto"`` and ``extension="auto"``.
+
+- **Parameters** (``params="auto"``): the forward-selection path of :mod:`pincal.auto.selection`,
+  scored by linearised leave-one-out cross-validation: every identifiable parameter when fitting
+  them all scores within 5 % of the path's lowest, else the shortest prefix within 1 % of it.
+- **Cause** (``extension="auto"``): :func:`pincal.auto.diagnose.diagnose` on the chosen geometry,
+  its own test deciding (lowest K-fold cross-validated RMS, a gain of at least 1.1 and an F-test
+  with Bonferroni's correction). A named cause changes which geometric parameters pay, so the
+  parameters are chosen again with the cause fitted at every step and the diagnosis re-run on
+  them, until it names the cause it named before (at most :data:`MAX_ROUNDS` rounds). Of the
+  rounds that named a cause, the one whose extended model has the lowest cross-validated RMS is
+  kept (all are judged on the same folds). On Gao et al.'s arm the first round names joint 2,
+  the second joint 3, which the third confirms (the full geometry names joint 3 at once).
+- **Nested cross-validation** of the whole procedure (the choice re-run without each fold):
+  the choice's own scores are biased low by the choosing; this estimate is not. It costs K
+  choices and fits, so it runs by default only when cheap (:func:`nested_policy`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from pincal.auto.diagnosis import Diagnosis, diagnose_with
+from pincal.errors import IdentifiabilityError
+from pincal.identify.calibration import Calibration
+from pincal.identify.forward_selection import Selection, select_on
+from pincal.identify.kfold import CrossValidation, Fit
+from pincal.identify.solver import Setup, set_up
+from pincal.kinematics.effects import Extension, Payload
+
+#: Rounds of selection and diagnosis for ``extension="auto"``.
+MAX_ROUNDS = 3
+#: Nested cross-validation runs by default up to this many poses (it costs K selections and fits).
+NESTED_MAX_POSES = 60
+
+
+@dataclass(frozen=True)
+class Round:
+    """One round of ``extension="auto"``: the diagnosis on a geometric set.
+
+    Attributes:
+        params: the geometric parameters of the baseline (None: every identifiable one).
+        with_cause: the cause fitted while those parameters were chosen (None in the first round).
+        cause: the cause the diagnosis named (``EFFECT:JOINT``), or None.
+        baseline_cv_rms_mm: the baseline's K-fold cross-validated RMS [mm].
+        extended_cv_rms_mm: the extended model's (the baseline's when nothing is named) [mm].
+    """
+
+    params: tuple[str, ...] | None
+    with_cause: str | None
+    cause: str | None
+    baseline_cv_rms_mm: float
+    extended_cv_rms_mm: float
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description."""
+        return {
+            "n_params": None if self.params is None else len(self.params),
+            "params": None if self.params is None else list(self.params),
+            "chosen_with": self.with_cause,
+            "cause": self.cause or "none",
+            "baseline_cv_rms_mm": self.baseline_cv_rms_mm,
+            "extended_cv_rms_mm": self.extended_cv_rms_mm,
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class ModelChoice:
+    """What was chosen and why.
+
+    Attributes:
+        params_mode: ``auto``, ``all`` or ``given``.
+        params: the chosen model parameters (None: every identifiable one).
+        selection: the selection path that chose them (``params="auto"``), else None.
+        extension_mode: ``auto``, ``given`` or ``none``.
+        extension: the cause included, or None.
+        diagnosis: the diagnosis of the round kept (``extension="auto"``), else None.
+        rounds: every round of ``extension="auto"``.
+        folds: K of the diagnosis' and the nested cross-validation.
+        seed: the seed of their folds.
+        nested: the nested cross-validation of the whole procedure, if it ran.
+        nested_note: why it did not run, or how it ran.
+        skipped: why ``extension="auto"``'s diagnosis did not run (too few poses for its folds).
+    """
+
+    params_mode: str
+    params: tuple[str, ...] | None
+    selection: Selection | None
+    extension_mode: str
+    extension: Extension | None
+    diagnosis: Diagnosis | None = field(default=None, repr=False)
+    rounds: tuple[Round, ...] = ()
+    folds: int = 5
+    seed: int = 0
+    nested: CrossValidation | None = field(default=None, repr=False)
+    nested_note: str = "not asked for"
+    skipped: str | None = None
+
+    def with_nested(self, judge: Callable[[], CrossValidation], forced: bool, n_poses: int) -> ModelChoice:
+        """This choice with the nested cross-validation ``judge()`` run (always when ``forced``,
+        else by :func:`nested_policy`), or the reason it was not."""
+        reason = None if forced else nested_policy(self, n_poses)
+        if reason is not None:
+            return replace(self, nested_note=reason)
+        cv = judge()
+        note = f"{cv.folds}-fold, the whole call re-run without each fold"
+        return replace(self, nested=cv, nested_note=note)
+
+    @property
+    def left_out(self) -> tuple[str, ...]:
+        """Candidate parameters of the path that were not chosen."""
+        if self.selection is None or self.params is None:
+            return ()
+        return tuple(str(s.added) for s in self.selection.path[1:] if s.added not in self.params)
+
+    @property
+    def gain(self) -> float:
+        """Cross-validated RMS of the geometric baseline / with the cause (1 without one)."""
+        return self.diagnosis.gain if self.diagnosis is not None and self.extension is not None else 1.0
+
+    def to_dict(self) -> dict[str, Any]:
+        """The report's ``choice`` object."""
+        sel, diag, cv = self.selection, self.diagnosis, self.nested
+        return {
+            "params": self.params_mode,
+            "kept": None if self.params is None else list(self.params),
+            "left_out": list(self.left_out),
+            "keeps_all": self.params is None,
+            "selection": None if sel is None else sel.to_dict(),
+            "cv_rms_mm": None
+            if sel is None
+            else {"chosen": sel.cv_rms_mm, "all": sel.all_cv_rms_mm, "by": "leave-one-out, linearised"},
+            "extension": self.extension_mode,
+            "cause": self.extension.label if self.extension else "none",
+            "cause_gain": self.gain,
+            "diagnosis": None if diag is None else diag.to_dict(),
+            "rounds": [r.to_dict() for r in self.rounds],
+            "nested": None
+            if cv is None
+            else {"folds": cv.folds, "before": cv.before.to_dict(), "after": cv.after.to_dict()},
+            "nested_note": self.nested_note,
+            "diagnosis_skipped": self.skipped,
+        }
+
+
+def choice_of(cal: Calibration) -> ModelChoice | None:
+    """The choice a calibration records, with its type (:mod:`pincal.identify.records` says why the
+    calibration types it by a protocol)."""
+    choice = cal.choice
+    if choice is not None and not isinstance(choice, ModelChoice):
+        raise TypeError(f"a calibration's choice is a ModelChoice, not {type(choice).__name__}")
+    return choice
+
+
+def nested_policy(choice: ModelChoice, n_poses: int) -> str | None:
+    """Why a nested cross-validation is skipped by default (None: run it)."""
+    if choice.extension_mode == "auto" and choice.extension is not None:
+        return "skipped: with a cause named it would re-run the diagnosis on every fold (pass --nested yes)"
+    if choice.params_mode != "auto":
+        return "skipped: nothing was chosen"
+    if n_poses < 2 * choice.folds:
+        return f"skipped: fewer than {2 * choice.folds} poses for {choice.folds} folds"
+    if n_poses > NESTED_MAX_POSES:
+        return f"skipped: more than {NESTED_MAX_POSES} poses (pass --nested yes to run it)"
+    return None
+
+
+Params = tuple[str, ...] | None
+
+
+def _select(
+    setup: Setup, wanted: tuple[str, ...] | str | None, start: np.ndarray | None = None
+) -> tuple[Params, Selection | None]:
+    if wanted != "auto":
+        return wanted if isinstance(wanted, tuple) else None, None
+    sel = select_on(setup, start=start)
+    return sel.params, sel
+
+
+def choose(
+    setup: Setup,
+    wanted: tuple[str, ...] | str | None,
+    extension: Extension | str | None,
+    *,
+    fit: Fit,
+    folds: int = 5,
+    seed: int = 0,
+    payload: Payload | None = None,
+    options: dict[str, Any],
+    fit_options: dict[str, Any],
+    progress: Callable[[int, int, str], None] | None = None,
+    start: np.ndarray | None = None,
+) -> ModelChoice:
+    """Choose the parameters (``wanted="auto"``) and the cause (``extension="auto"``).
+
+    Args:
+        setup: the problem on the poses to fit (with the extension when one is given).
+        wanted: ``"auto"``, None (every parameter) or the names.
+        extension: ``"auto"``, an :class:`Extension` or None.
+        fit: the calibration the diagnosis fits with (:func:`pincal.calibrate`).
+        folds: K of the diagnosis' cross-validation.
+        seed: seed of its folds.
+        payload: a load on the tip, for the gravity torques of the candidates.
+        options: the measurement set-up (:data:`pincal.identify.solver.SETUP_KEYS`).
+        fit_options: loss, f_scale, rcond, partial of :func:`pincal.calibrate`.
+        progress: called as ``progress(done, total, label)`` by the diagnosis.
+        start: the fit of the registration, tool and extension alone, if already known.
+    """
+    params, sel = _select(setup, wanted, start)
+    mode = "auto" if wanted == "auto" else "all" if wanted is None else "given"
+    ext_mode = "auto" if extension == "auto" else "none" if extension is None else "given"
+    base = ModelChoice(mode, params, sel, ext_mode, setup.problem.extension, folds=folds, seed=seed)
+    if extension != "auto":
+        return base
+    robot, data, model = setup.model.robot, setup.data, setup.model
+    measure = setup.problem.measurement.kind
+    rounds: list[Round] = []
+    kept: tuple[float, ModelChoice] | None = None
+    cause: Extension | None = None
+    for _ in range(MAX_ROUNDS):
+        try:
+            diag = diagnose_with(
+                fit,
+                robot,
+                data,
+                model,  # type: ignore[arg-type]
+                measure,
+                folds,
+                seed,
+                payload=payload,
+                progress=progress,
+                quick=True,
+                params=None if params is None else list(params),
+                **options,
+                **fit_options,
+            )
+        except IdentifiabilityError as exc:  # a fold too small to fit: the geometry alone, said so
+            if rounds:
+                break
+            return replace(base, skipped=f"too few poses for the diagnosis' {folds} folds ({exc})")
+        named = diag.cause.extension if diag.cause else None
+        label = named.label if named else None
+        with_cause = cause.label if cause else None
+        rounds.append(Round(params, with_cause, label, diag.baseline_cv_rms_mm, diag.extended_cv_rms_mm))
+        if named is not None and (kept is None or diag.extended_cv_rms_mm < kept[0]):
+            kept_choice = replace(base, params=params, selection=sel, extension=named, diagnosis=diag)
+            kept = (diag.extended_cv_rms_mm, kept_choice)
+        if named is None or wanted != "auto" or (cause is not None and label == cause.label):
+            break
+        cause = named
+        params, sel = _select(set_up(robot, data, model, measure, extension=cause, **options), wanted)
+    if kept is None:
+        return replace(base, diagnosis=diag, rounds=tuple(rounds))
+    return replace(kept[1], rounds=tuple(rounds))

@@ -1,0 +1,346 @@
+"""Diagnosis: what the rigid model still gets wrong, its physical cause, and the gain on new poses.
+
+1. Baseline: the geometric model (identifiable set only), judged by K-fold cross-validation.
+2. Candidates: every effect of :mod:`pincal.kinematics.effects` on every joint, each identified together
+   with the geometry and judged by the same folds: first all of them on the problem linearised
+   at the geometric fit (:mod:`pincal.auto.screening`, no nonlinear solve), then the
+   :data:`FINALISTS` best by the nonlinear calibration and cross-validation.
+3. Selection: the finalist with the lowest cross-validated RMS wins only if
+   (a) it beats the baseline's cross-validated RMS by :data:`MIN_GAIN`, and
+   (b) its fit on all poses passes an F-test against the baseline, ``p < α / (number of
+   candidates)`` (Bonferroni, α = 0.01). Otherwise the answer is ``none``: a false cause is
+   worse than no cause.
+For distance data the F-test counts ``3 N - 6`` independent equations for ``N`` poses, since
+the distances of all pairs carry no more information than the points themselves.
+
+The fit is given (:func:`diagnose_with`): :func:`pincal.auto.diagnose.diagnose` fits with
+:func:`pincal.calibrate`, and the pipeline's ``extension="auto"``, above this module, with its own.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy.special import fdtrc
+
+from pincal.auto.screening import Linearised, Screen
+from pincal.data.dataset import Dataset
+from pincal.identify.calibration import Calibration
+from pincal.identify.kfold import Fit, cross_validate_with
+from pincal.kinematics.effects import (
+    Extension,
+    Payload,
+    Stiffness,
+    candidates,
+    compliance_stiffness,
+    implausible,
+    massless,
+)
+from pincal.robot.robots import Robot
+from pincal.threads import limited
+
+#: The winner must beat the baseline's cross-validated RMS by at least this factor.
+MIN_GAIN = 1.1
+#: Family-wise significance level of the F-tests.
+ALPHA = 0.01
+#: Candidates judged by the nonlinear cross-validation after the linearised screen.
+FINALISTS = 3
+#: ``quick`` diagnoses (``calibrate --extend auto``) judge by the nonlinear cross-validation only
+#: the finalists whose linearised cross-validated gain reaches this (half of :data:`MIN_GAIN`'s
+#: margin: the linearisation at the geometric fit is close, so one below it cannot reach
+#: :data:`MIN_GAIN`); on data the rigid model explains, none does, and the diagnosis costs one
+#: cross-validation instead of four.
+QUICK_GAIN = 1.05
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One effect on one joint, as judged.
+
+    Attributes:
+        extension: the effect.
+        cv_rms_mm: cross-validated RMS [mm] (linearised for a candidate only screened).
+        p_value: F-test of the extended fit on all poses against the baseline.
+        calibration: the extended fit on all poses (None for a candidate only screened).
+        q: the data's commanded configurations (N, n), to read a compliance as a stiffness.
+        screened_params: the effect's parameters of the linearised fit, when only screened.
+    """
+
+    extension: Extension
+    cv_rms_mm: float
+    p_value: float
+    calibration: Calibration | None = field(repr=False)
+    q: np.ndarray | None = field(default=None, repr=False, compare=False)
+    screened_params: np.ndarray | None = field(default=None, repr=False, compare=False)
+
+    @property
+    def screened(self) -> bool:
+        """Judged on the linearised problem only (:mod:`pincal.auto.screening`)."""
+        return self.calibration is None
+
+    @property
+    def params(self) -> np.ndarray:
+        """The effect's parameters (in the extension's units)."""
+        if self.calibration is not None:
+            return self.calibration.effect_params
+        return np.zeros(self.extension.n_params) if self.screened_params is None else self.screened_params
+
+    def stiffness(self, q: np.ndarray | None = None) -> Stiffness | None:
+        """A ``joint_compliance`` coefficient read as a stiffness over ``q`` (default: the
+        candidate's own), or None for other effects or without configurations."""
+        q = self.q if q is None else q
+        if self.extension.effect != "joint_compliance" or q is None:
+            return None
+        return compliance_stiffness(self.extension, float(self.params[0]), q)
+
+    @property
+    def implausible(self) -> str | None:
+        """Why its identified value cannot be the named effect (None: plausible, or no ``q``)."""
+        return None if self.q is None else implausible(self.extension, self.params, self.q)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description (with a ``stiffness`` for a joint compliance, given ``q``)."""
+        ext = self.extension
+        stiffness = self.stiffness()
+        extra: dict[str, Any] = {"stiffness": stiffness.to_dict()} if stiffness is not None else {}
+        extra["implausible"] = self.implausible
+        return {
+            "effect": ext.effect,
+            "joint": ext.joint,
+            "harmonic": ext.harmonic if ext.effect == "gear_harmonic" else None,
+            "cv_rms_mm": self.cv_rms_mm,
+            "p_value": self.p_value,
+            "judged": "linearised" if self.screened else "nonlinear",
+            "parameters": {
+                n: {"value": float(v), "unit": u} for n, v, u in zip(ext.names, self.params, ext.units)
+            },
+            **extra,
+        }
+
+
+@dataclass(frozen=True)
+class Diagnosis:
+    """The answer of :func:`pincal.auto.diagnose.diagnose`.
+
+    Attributes:
+        baseline: the geometric model's fit on all poses.
+        baseline_cv_rms_mm: its cross-validated RMS [mm].
+        cause: the named cause, or None.
+        candidates: every candidate, best first.
+        folds: number of folds.
+        q: the data's commanded configurations (N, n), to read a compliance as a stiffness.
+        rejected: candidates that paid on held-out poses but whose identified value is
+            implausible for the effect named (:func:`pincal.kinematics.effects.implausible`), best first.
+    """
+
+    baseline: Calibration = field(repr=False)
+    baseline_cv_rms_mm: float
+    cause: Candidate | None
+    candidates: tuple[Candidate, ...]
+    folds: int
+    q: np.ndarray | None = field(default=None, repr=False, compare=False)
+    rejected: tuple[Candidate, ...] = ()
+
+    @property
+    def extended(self) -> Calibration:
+        """The fit on all poses with the named cause (the baseline's when there is none)."""
+        named = self.cause.calibration if self.cause else None
+        return self.baseline if named is None else named
+
+    @property
+    def extended_cv_rms_mm(self) -> float:
+        """Cross-validated RMS of the extended model (the baseline's when there is no cause)."""
+        return self.cause.cv_rms_mm if self.cause else self.baseline_cv_rms_mm
+
+    @property
+    def gain(self) -> float:
+        """Baseline / extended cross-validated RMS."""
+        return self.baseline_cv_rms_mm / self.extended_cv_rms_mm
+
+    @property
+    def untried(self) -> str | None:
+        """What could not be tried and how to try it, or None."""
+        loaded = any(c.extension.effect in ("joint_compliance", "backlash") for c in self.candidates)
+        if loaded or not massless(self.baseline.model.robot):
+            return None
+        return "compliance and backlash not tried: the URDF has no masses (lend them with --inertias URDF)"
+
+    def summary(self) -> str:
+        """One line a person can act on."""
+        untried = self.untried
+        return self._named() + (f"; {untried}" if untried else "")
+
+    def _named(self) -> str:
+        """What the diagnosis names, with its gain."""
+        b, a = self.baseline_cv_rms_mm, self.extended_cv_rms_mm
+        if self.cause is None:
+            rejected = "".join(f"; {c.extension.label} rejected: {c.implausible}" for c in self.rejected)
+            if self.rejected:
+                said = f"no plausible listed effect pays on held-out poses: cross-validated RMS {b:.3f} mm"
+                return said + rejected
+            best = (
+                f"best candidate {self.candidates[0].extension.label}, not significant"
+                if self.candidates
+                else "no effect the data can tell from the geometry"
+            )
+            return f"no listed effect pays on held-out poses: cross-validated RMS {b:.3f} mm ({best})"
+        ext, p = self.cause.extension, self.cause.params
+        unit = ext.units[0]
+        if ext.effect == "joint_compliance":
+            what = self._compliance(self.cause, unit)
+        elif ext.effect == "gear_harmonic":
+            amplitude = float(np.linalg.norm(p)) * 1e3
+            what = (
+                f"{ext.joint} has a transmission error at {ext.harmonic}x its angle: "
+                f"amplitude {amplitude:.3g} m{unit}"
+            )
+        elif ext.effect == "encoder_scale":
+            what = (
+                f"{ext.joint} angle is scaled by {1 + p[0]:.6f} "
+                f"(encoder or gear ratio off by {p[0] * 1e6:.0f} ppm)"
+            )
+        else:
+            what = (
+                f"{ext.joint} has {2 * abs(p[0]) * 1e3:.3g} m{unit} of play "
+                "between the two directions of its gravity load"
+            )
+        return f"{what}; held-out RMS {b:.3f} → {a:.3f} mm ({b / a:.1f}x, {self.folds}-fold CV)"
+
+    def _compliance(self, cause: Candidate, unit: str) -> str:
+        """A named compliance: its coefficient and what it means as a stiffness."""
+        joint, c = cause.extension.joint, float(cause.params[0])
+        stiffness = cause.stiffness(self.q)
+        if stiffness is None:
+            return f"{joint}: error proportional to its gravity torque, c = {c:.3g} {unit}"
+        if stiffness.plausible:  # "sags under gravity: K = ..."
+            head, _, tail = stiffness.verdict.partition(": ")
+            return f"{joint} {head}: c = {c:.3g} {unit}, {tail}"
+        return f"{joint}: error proportional to its gravity torque, c = {c:.3g} {unit}; {stiffness.verdict}"
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON of ``contracts.md``."""
+        cause = self.cause.extension if self.cause else None
+        return {
+            "baseline": {"model": self.baseline.model.kind, "cv_rms_mm": self.baseline_cv_rms_mm},
+            "cause": {
+                "effect": cause.effect if cause else "none",
+                "joint": cause.joint if cause else None,
+                "harmonic": cause.harmonic if cause and cause.effect == "gear_harmonic" else None,
+            },
+            "extended": {"cv_rms_mm": self.extended_cv_rms_mm},
+            "gain": self.gain,
+            "summary": self.summary(),
+            "folds": self.folds,
+            "selection": f"lowest cross-validated RMS, if gain >= {MIN_GAIN} and F-test p < {ALPHA} / "
+            f"{len(self.candidates)} (Bonferroni)",
+            "candidates": [c.to_dict() for c in self.candidates],
+            "rejected": [
+                {"effect": c.extension.effect, "joint": c.extension.joint, "why": c.implausible}
+                for c in self.rejected
+            ],
+        }
+
+
+def _counted(sum_sq: float, n_res: int, pairs: bool, n_poses: int) -> tuple[float, int]:
+    """A residual sum of squares and its number of independent equations: for distance data,
+    the ``3 N - 6`` that the pairs' distances carry (``pairs``), the sum scaled to match."""
+    if not pairs:
+        return sum_sq, n_res
+    n_eq = 3 * n_poses - 6
+    return sum_sq * n_eq / n_res, n_eq
+
+
+def _rss(cal: Calibration, data: Dataset) -> tuple[float, int]:
+    """Residual sum of squares of a fit and its number of independent equations."""
+    res = cal.problem(data).residuals(cal.theta)
+    return _counted(float(res @ res), len(res), cal.measurement.measure.by_pairs, len(data))
+
+
+def _f_value(rss0: float, rss1: float, extra: int, dof: int) -> float:
+    """p-value of the F-test of ``extra`` more parameters, ``dof`` residual degrees of freedom."""
+    if extra <= 0 or dof <= 0 or rss1 <= 0:
+        return 1.0
+    return float(fdtrc(extra, dof, ((rss0 - rss1) / extra) / (rss1 / dof)))
+
+
+def _f_test(base: Calibration, ext: Calibration, data: Dataset) -> float:
+    rss0, n_eq = _rss(base, data)
+    rss1, _ = _rss(ext, data)
+    extra = ext.identifiability.n_identifiable - base.identifiability.n_identifiable
+    return _f_value(rss0, rss1, extra, n_eq - ext.identifiability.n_identifiable)
+
+
+def _f_screened(base: Calibration, lin: Linearised, screen: Screen, extra: int) -> float:
+    """The F-test of a candidate only screened: its linearised fit's residual sum against the
+    base's (whose residuals ``lin`` holds)."""
+    kind, n_poses, n_res = lin.kind.by_pairs, len(lin.data), len(lin.residuals)
+    rss0, n_eq = _counted(float(lin.residuals @ lin.residuals), n_res, kind, n_poses)
+    rss1, _ = _counted(screen.rss, n_res, kind, n_poses)
+    return _f_value(rss0, rss1, extra, n_eq - base.identifiability.n_identifiable - extra)
+
+
+@limited
+def diagnose_with(
+    fit: Fit,
+    robot: Robot,
+    data: Dataset,
+    model: str = "placements",
+    measure: str | None = None,
+    folds: int = 5,
+    seed: int = 0,
+    effects: list[Extension] | None = None,
+    payload: Payload | None = None,
+    progress: Callable[[int, int, str], None] | None = None,
+    quick: bool = False,
+    **options: Any,
+) -> Diagnosis:
+    """:func:`pincal.auto.diagnose.diagnose` (its arguments and answer) with the calibration ``fit``,
+    called as ``fit(robot, data, model, measure, **options)``."""
+    options = {k: v for k, v in options.items() if k != "extension"}
+    options["deliver"] = "none"  # a cause is named by the joint fit of geometry and effect
+    pool = candidates(robot, payload) if effects is None else effects
+    base = fit(robot, data, model, measure, **options)  # first: says if the data falls short
+    base_cv = cross_validate_with(fit, robot, data, model, measure, folds, seed, **options)
+    lin = Linearised(base, data, folds, seed)
+    total = len(pool) + min(FINALISTS, len(pool))
+    screens = []
+    for k, ext in enumerate(pool):
+        screen = lin.screen(ext)
+        if screen.identifiable:  # an effect the data cannot tell from the geometry is no candidate
+            screens.append((ext, screen))
+        if progress is not None:
+            progress(k + 1, total, ext.label)
+    screens.sort(key=lambda item: item[1].cv_rms_mm)
+    options["partial"] = True
+    finalists: list[Candidate] = []
+    n_final, base_rms = min(FINALISTS, len(screens)), base_cv.after.rms_mm
+    if quick:
+        n_final = sum(base_rms / s.cv_rms_mm >= QUICK_GAIN for _, s in screens[:n_final])
+    for k, (ext, _) in enumerate(screens[:n_final]):
+        full = fit(robot, data, model, measure, extension=ext, **options)
+        if progress is not None:
+            progress(len(pool) + k + 1, total, f"{ext.label} (nonlinear)")
+        if not full.identifiability.identifiable[
+            full.model.n_params : full.model.n_params + ext.n_params
+        ].all():
+            continue
+        cv = cross_validate_with(fit, robot, data, model, measure, folds, seed, extension=ext, **options)
+        finalists.append(Candidate(ext, cv.after.rms_mm, _f_test(base, full, data), full, data.q))
+    finalists.sort(key=lambda c: c.cv_rms_mm)
+    screened = [
+        Candidate(ext, s.cv_rms_mm, _f_screened(base, lin, s, ext.n_params), None, data.q, s.params)
+        for ext, s in screens[n_final:]
+    ]
+    judged = finalists + screened
+    paying = [c for c in finalists if base_rms / c.cv_rms_mm >= MIN_GAIN and c.p_value < ALPHA / len(judged)]
+    rejected = tuple(c for c in paying if c.implausible is not None)
+    cause = next((c for c in paying if c.implausible is None), None)
+    return Diagnosis(base, base_rms, cause, tuple(judged), folds, data.q, rejected)
+
+
+def extended_calibration(diagnosis: Diagnosis) -> Calibration:
+    """The fit on all poses with the named cause (the baseline's when there is none)."""
+    return diagnosis.extended

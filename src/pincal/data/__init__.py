@@ -1,0 +1,1 @@
+"""Measurement data: CSV, socket folders and ROS recordings read into a Dataset."""

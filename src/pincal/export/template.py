@@ -1,0 +1,47 @@
+"""The header of a measurement CSV for a robot: what a user fills to calibrate it.
+
+The columns are those :func:`pincal.read_csv` reads (see ``docs/formats.md``): one per joint of
+the chain from the base to the tip, named as in the URDF, then ``x,y,z`` (the measured point in
+the instrument's frame), ``qw,qx,qy,qz`` for full-pose data, or a ``point`` column for fixed
+points. Comment lines (``#``) above the header say the units the values must be in.
+"""
+
+from __future__ import annotations
+
+from pincal.identify.kinds import get_kind
+from pincal.robot.robots import Robot
+
+
+def csv_template(robot: Robot, kind: str = "position", units: str = "m", degrees: bool = False) -> str:
+    """The comment lines and header of a measurement CSV for ``robot``'s chain.
+
+    Args:
+        robot: the chain (:func:`pincal.load_robot`): its joints name the joint columns.
+        kind: ``position`` (x,y,z), ``pose`` (x,y,z and qw,qx,qy,qz) or ``points`` (a point column).
+        units: ``m`` or ``mm``: the unit of x,y,z and of prismatic joint values.
+        degrees: revolute joint values in degrees (else radians).
+
+    Returns:
+        The text of the file: ``#`` lines on units and options, then the header line.
+    """
+    angle = "degrees (pass --degrees)" if degrees else "radians"
+    length = "millimetres (pass --units mm)" if units == "mm" else "metres"
+    prismatic = [j for j, p in zip(robot.joint_names, robot.prismatic) if p]
+    lines = [
+        f"# pincal measurement CSV: {robot.name}, chain to {robot.tip}; one row per pose, values "
+        "comma separated",
+        f"# joint columns: the commanded joint values; revolute joints in {angle}"
+        + (f"; prismatic joints ({', '.join(prismatic)}) in {length}" if prismatic else ""),
+    ]
+    measure = get_kind(kind)
+    if measure.fixed_points:
+        lines.append("# point: the name or number of the fixed point (socket) the tip is held at")
+    else:
+        lines.append(
+            f"# x,y,z: the measured position of a point fixed on {robot.tip} (a reflector, a marker), "
+            f"in the instrument's frame, in {length}"
+        )
+    if measure.orientation:
+        lines.append("# qw,qx,qy,qz: the measured orientation (unit quaternion) in the instrument's frame")
+    lines.append(",".join((*robot.joint_names, *measure.columns)))
+    return "\n".join(lines) + "\n"

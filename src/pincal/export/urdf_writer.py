@@ -1,0 +1,288 @@
+"""The corrected URDF: the identified geometry written back as joint origins, nothing else.
+
+Every model's calibrated chain (see :mod:`pincal.kinematics.chain`) is brought to the URDF's own
+joint frames and axes, then each chain joint's ``<origin>`` is solved for:
+
+1. ``X_j``: the constant transform from the model's frame of joint ``j`` to the URDF's, taken
+   at the nominal geometry (identity for ``placements``, ``offsets`` and ``poe``; for ``mdh`` a
+   rotation taking z to the URDF axis and a shift along the axis). Then
+   ``C̃_j = X_{j-1}⁻¹ · C_j · X_j`` is the same chain with the URDF's joint axes, exactly.
+2. The tip's placement on the last link is the URDF's; whatever the model moved there must be a
+   rotation about or a shift along the last joint's axis (an ``mdh`` ``d``), which commutes with
+   that joint and moves into its origin.
+3. ``C̃_j = K_j · O'_j``, where ``K_j`` is what stands between the previous chain joint and this
+   joint's ``<origin>`` (fixed and locked joints, unchanged): ``O'_j = K_j⁻¹ · C̃_j``.
+
+Joint offsets are folded into ``<origin rpy>``, never into ``<calibration>``; axes stay as written.
+For fixed-point data the tip is the ball the sockets held: its calibrated centre moves the origin
+of the fixed joint that carries the tip link (MUKCa's ``ball_joint``), and the sidecar's tool is
+then the identity.
+The instrument registration and the tool go to a JSON sidecar next to the URDF. Numbers are
+written with ``repr`` (shortest round-trip). The XML is parsed with entity resolution, DTD
+loading and network access off.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+from lxml import etree
+
+from pincal.errors import DataError, PincalError
+from pincal.files import atomic_write_many
+from pincal.identify.calibration import Calibration
+from pincal.json_text import json_text
+from pincal.kinematics.chain import Chain, forward
+from pincal.robot.robots import Robot
+
+_PARSER = etree.XMLParser(resolve_entities=False, no_network=True, load_dtd=False, remove_comments=False)
+
+
+def _origin(element: etree._Element | None) -> pin.SE3:
+    """SE3 of a URDF ``<origin>`` (missing: identity); rpy as URDF: R = Rz(y) Ry(p) Rx(r)."""
+    if element is None:
+        return pin.SE3.Identity()
+    xyz = [float(v) for v in (element.get("xyz") or "0 0 0").split()]
+    rpy = [float(v) for v in (element.get("rpy") or "0 0 0").split()]
+    return pin.SE3(pin.rpy.rpyToMatrix(*rpy), np.array(xyz))
+
+
+def _format(values: np.ndarray) -> str:
+    return " ".join(repr(float(v) + 0.0) for v in values)
+
+
+def _set_origin(joint: etree._Element, placement: pin.SE3) -> None:
+    origin = joint.find("origin")
+    origin = etree.SubElement(joint, "origin") if origin is None else origin
+    origin.set("xyz", _format(placement.translation))
+    origin.set("rpy", _format(pin.rpy.matrixToRpy(placement.rotation)))
+
+
+def _frames_at_zero(chain: Chain) -> list[pin.SE3]:
+    n = chain.axes.shape[0]
+    frames = forward(chain, np.zeros((1, n)))
+    return [pin.SE3(frames.rotations[2 * j, 0], frames.translations[2 * j, 0]) for j in range(n)]
+
+
+def urdf_chain(cal: Calibration) -> list[pin.SE3]:
+    """The calibrated chain's placements ``C̃_0 … C̃_{n-1}`` in the URDF's joint frames and axes.
+
+    The tip placement ``C̃_n`` is the URDF's own. Raises PincalError (a bug) if the model moved
+    the tip in a way no joint origin can hold.
+    """
+    robot = cal.robot
+    n = robot.n_joints
+    model_zero = _frames_at_zero(cal.model.chain(np.zeros(cal.model.n_params)))
+    urdf_zero = _frames_at_zero(Chain.nominal(robot))
+    x = [m.actInv(u) for m, u in zip(model_zero, urdf_zero)]
+    placements = cal.chain().placements
+    out = [placements[0] * x[0]]
+    out += [x[j - 1].actInv(placements[j] * x[j]) for j in range(1, n)]
+    tip = x[n - 1].actInv(placements[n])
+    delta = pin.log6(tip * robot.placements[n].inverse()).vector
+    axis = robot.axes[n - 1, 3:] if np.any(robot.axes[n - 1, 3:]) else robot.axes[n - 1, :3]
+    off_axis = max(np.linalg.norm(np.cross(delta[:3], axis)), np.linalg.norm(np.cross(delta[3:], axis)))
+    if off_axis > 1e-9:
+        raise PincalError(f"internal: the {cal.model.kind} model moved the tip off the last joint's axis")
+    out[n - 1] = out[n - 1] * pin.exp6(pin.Motion(delta))
+    return out
+
+
+def _source(robot: Robot) -> bytes:
+    """The URDF the robot was built from (a xacro's output, a kinematics YAML applied, the masses
+    lent by ``inertias`` written in)."""
+    text = robot.lent_text or robot.urdf_text
+    return text.encode("utf-8") if text else Path(robot.urdf_path).read_bytes()
+
+
+def _read(robot: Robot) -> Any:
+    """The robot's URDF as an XML element."""
+    try:
+        return etree.fromstring(_source(robot), _PARSER)
+    except (OSError, etree.XMLSyntaxError) as exc:
+        raise DataError(f"cannot parse URDF {robot.urdf_path}: {exc}") from None
+
+
+def corrected_origins(cal: Calibration, root: etree._Element | None = None) -> dict[str, pin.SE3]:
+    """Each chain joint's corrected ``<origin>`` (in its parent link's frame), by joint name."""
+    joints = {j.get("name"): j for j in (_read(cal.robot) if root is None else root).findall("joint")}
+    out = {}
+    for name, c_tilde, c_nominal in zip(cal.robot.joint_names, urdf_chain(cal), cal.robot.placements):
+        between = c_nominal * _origin(joints[name].find("origin")).inverse()  # K_j: fixed, locked joints
+        out[name] = between.actInv(c_tilde)
+    return out
+
+
+def corrected_urdf(cal: Calibration, add_frame: str | None = None) -> bytes:
+    """The corrected URDF document.
+
+    Args:
+        cal: the calibration.
+        add_frame: if given, a fixed joint ``<add_frame>_joint`` and link ``<add_frame>`` at the
+            calibrated tool (point, and orientation for pose data) on the tip link.
+    """
+    robot = cal.robot
+    root = _read(robot)
+    check_frame_name(add_frame)
+    joints = {j.get("name"): j for j in root.findall("joint")}
+    for name, origin in corrected_origins(cal, root).items():
+        _set_origin(joints[name], origin)
+    ball = _ball_joint(root, cal)
+    if ball is not None:
+        _set_origin(ball, _origin(ball.find("origin")) * pin.SE3(np.eye(3), cal.split()[2].translation))
+    if add_frame is not None:
+        _add_frame(root, robot.tip, add_frame, cal)
+    return _prolog(_source(robot)) + etree.tostring(root, encoding="UTF-8") + b"\n"
+
+
+def _ball_joint(root: etree._Element, cal: Calibration) -> etree._Element | None:
+    """For fixed-point data, the fixed joint whose child is the tip link (it takes the ball's
+    calibrated centre), else None."""
+    if not cal.measurement.measure.fixed_points:
+        return None
+    for joint in root.findall("joint"):
+        child = joint.find("child")
+        if joint.get("type") == "fixed" and child is not None and child.get("link") == cal.robot.tip:
+            return joint
+    return None
+
+
+def _prolog(source: bytes) -> bytes:
+    """The input's bytes before the root element (declaration, comments, doctype), kept as
+    written: everything before the first ``<`` that opens an element (the root's start tag may
+    span several lines, with its attributes on the next)."""
+    pos = 3 if source.startswith(b"\xef\xbb\xbf") else 0  # a UTF-8 byte-order mark
+    ends = {b"<?": b"?>", b"<!--": b"-->", b"<!": b">"}
+    while True:
+        while source[pos : pos + 1].isspace():
+            pos += 1
+        opener = next((o for o in ends if source.startswith(o, pos)), None)
+        if opener is None:
+            break
+        end = source.find(ends[opener], pos + len(opener))
+        if end < 0:
+            break
+        pos = end + len(ends[opener])
+    prolog = source[:pos]
+    return prolog if prolog.strip() else b'<?xml version="1.0" encoding="UTF-8"?>\n'
+
+
+def check_frame_name(name: str | None) -> None:
+    """Refuse an ``--add-frame`` name that is not a plain XML name."""
+    if name is not None and not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_.-]*", name):
+        raise DataError(f"--add-frame {name!r}: use letters, digits, '_', '-' or '.', starting with a letter")
+
+
+def _add_frame(root: etree._Element, tip: str, name: str, cal: Calibration) -> None:
+    links = {link.get("name") for link in root.findall("link")}
+    if tip not in links:
+        raise DataError(f"--add-frame needs the tip {tip!r} to be a link of the URDF")
+    if name in links or f"{name}_joint" in {j.get("name") for j in root.findall("joint")}:
+        raise DataError(f"--add-frame {name!r}: the URDF already has a link or joint of that name")
+    _, _, tool = cal.split()
+    indent = "\n  "
+    if len(root):
+        root[-1].tail = indent
+    joint = etree.SubElement(root, "joint", name=f"{name}_joint", type="fixed")
+    joint.text = indent + "  "
+    etree.SubElement(joint, "parent", link=tip).tail = indent + "  "
+    etree.SubElement(joint, "child", link=name).tail = indent + "  "
+    origin = etree.SubElement(joint, "origin")
+    origin.tail = indent
+    placement = tool if cal.measurement.measure.tool_dof == 6 else pin.SE3(np.eye(3), tool.translation)
+    if _ball_joint(root, cal) is not None:  # the tip link is the ball's centre already
+        placement = pin.SE3.Identity()
+    _set_origin(joint, placement)
+    joint.tail = indent
+    etree.SubElement(root, "link", name=name).tail = "\n"
+
+
+def sidecar(cal: Calibration, urdf_name: str) -> dict[str, Any]:
+    """What the URDF cannot hold: the instrument registration and the tool."""
+    _, reg, tool = cal.split()
+    ball = cal.measurement.measure.fixed_points and _ball_joint(_read(cal.robot), cal) is not None
+    if ball:  # the corrected URDF's tip link is the ball's centre
+        tool = pin.SE3.Identity()
+
+    def pose(se3: pin.SE3) -> dict[str, Any]:
+        return {
+            "xyz_m": [float(v) for v in se3.translation],
+            "rpy_rad": [float(v) for v in pin.rpy.matrixToRpy(se3.rotation)],
+            "matrix": se3.homogeneous.tolist(),
+        }
+
+    fitted = cal.measurement.n_instrument > 0
+    return {
+        "urdf": urdf_name,
+        "robot": cal.robot.name,
+        "tip": cal.robot.tip,
+        "joints": list(cal.robot.joint_names),
+        "model": cal.model.kind,
+        "measure": cal.measurement.kind,
+        "instrument_T_base": pose(reg) if fitted else None,
+        "instrument_T_base_note": "identified"
+        if fitted
+        else "not identified (given, or distance or fixed-point data)",
+        "tip_T_tool": pose(tool),
+        "extension": None
+        if cal.extension is None
+        else {
+            "effect": cal.extension.effect,
+            "joint": cal.extension.joint,
+            "harmonic": cal.extension.harmonic,
+            "payload": None
+            if cal.extension.payload is None
+            else {"mass_kg": cal.extension.payload.mass, "com_m": list(cal.extension.payload.com)},
+            "parameters": {
+                n: {"value": float(v), "unit": u}
+                for n, v, u in zip(cal.extension.names, cal.effect_params, cal.extension.units)
+            },
+            "note": "a joint-angle error the URDF cannot hold: command q, the joint reaches q + effect",
+        },
+        "tool_note": (
+            "the measured point (and target orientation for pose data) on the tip frame. Only what "
+            "was measured is calibrated: with point data, frames other than the measured point "
+            "(the tip frame's orientation, other tool frames) are not determined by the data"
+        ),
+    }
+
+
+def sidecar_path(urdf: str | Path) -> Path:
+    """Where the sidecar of a corrected URDF lives: ``<stem>.calibration.json`` beside it."""
+    urdf = Path(urdf)
+    return urdf.with_name(urdf.stem + ".calibration.json")
+
+
+def check_output(path: Path, robot: Robot) -> None:
+    """Refuse an output that is the input URDF or sits in a folder that does not exist."""
+    if path.resolve() == Path(robot.urdf_path).resolve():
+        raise DataError(f"-o {path} is the input URDF: write the corrected URDF to another file")
+    if not path.parent.resolve().is_dir():
+        raise DataError(f"the output folder {path.parent} does not exist: create it first")
+
+
+def write_corrected_urdf(
+    cal: Calibration, path: str | Path, add_frame: str | None = None
+) -> tuple[Path, Path]:
+    """Write the corrected URDF and its sidecar ``<stem>.calibration.json``, both or neither.
+
+    Raises:
+        DataError: the output is the input URDF, or its folder does not exist.
+    """
+    files = corrected_files(cal, path, add_frame)
+    atomic_write_many(files)
+    return files[0][0], files[1][0]
+
+
+def corrected_files(
+    cal: Calibration, path: str | Path, add_frame: str | None = None
+) -> list[tuple[Path, str]]:
+    """The corrected URDF at ``path`` and its sidecar beside it: [(path, text), (sidecar, text)]."""
+    path = Path(path)
+    check_output(path, cal.robot)
+    text = corrected_urdf(cal, add_frame).decode("utf-8")
+    return [(path, text), (sidecar_path(path), json_text(sidecar(cal, path.name)))]

@@ -1,0 +1,196 @@
+"""Large data sets in blocks of poses: the fit's memory stays bounded whatever the number of poses.
+
+Position and pose residuals are pose by pose, so a :class:`~pincal.identify.measurements.Problem` on N
+poses is the stack of the problems on blocks of :data:`BLOCK_POSES` poses. Above
+:data:`LARGE_POSES` poses (position or pose data), a problem works block by block:
+
+- its residuals, Jacobian rows and target frames are computed one block at a time (the joint
+  frames of one block are held, never those of all poses: 13 frames of a 6-joint arm are 1.2 GB
+  at a million poses);
+- the Levenberg-Marquardt step (:mod:`pincal.identify.lm`) uses the triangle R of the QR of ``[J r]``,
+  built block by block as the QR of ``[R; next block]`` (the same triangle as one QR of the
+  whole matrix, up to the signs of its rows), so the 3N × P Jacobian is never held;
+- the parameters' standard deviations use ``JᵀJ`` summed block by block;
+- the identifiable set, and a fit with a robust loss (outlier screening), are found on a random
+  subset of :data:`SAMPLE_POSES` poses (seed 0): which parameters the poses identify is a
+  property of how the poses spread, which such a subset shares; the robust fit only scores the
+  poses, and every pose is then scored.
+
+Distance and fixed-point data (rows of pairs, points shared by rows) are not split.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import replace
+from typing import Any, ClassVar, Protocol, TypeVar
+
+import numpy as np
+
+from pincal.data.dataset import Dataset
+from pincal.identify.rows import ProblemRows
+from pincal.kinematics.chain import Frames
+
+
+class _Posed(Protocol):
+    """A set-up (:class:`pincal.identify.solver.Setup`): a dataclass with a problem."""
+
+    __dataclass_fields__: ClassVar[dict[str, Any]]
+
+    @property
+    def problem(self) -> ProblemRows:
+        """Its problem."""
+
+
+_Setup = TypeVar("_Setup", bound=_Posed)
+
+#: Poses above which a problem works block by block.
+LARGE_POSES = 50_000
+#: Poses per block.
+BLOCK_POSES = 20_000
+#: Poses of the random subset the identifiable set and a robust fit are found on.
+SAMPLE_POSES = 50_000
+
+
+def is_large(problem: ProblemRows) -> bool:
+    """Whether ``problem`` works block by block (see the module docstring)."""
+    if not getattr(problem, "blockwise", True):  # a problem that says it is solved whole
+        return False
+    return problem.measurement.measure.registered and len(problem.data) > LARGE_POSES
+
+
+def blocks(problem: ProblemRows) -> list[ProblemRows]:
+    """The problems on consecutive blocks of :data:`BLOCK_POSES` poses (made once per problem)."""
+    made = problem.__dict__.get("_blocks")
+    if made is None:
+        n = len(problem.data)
+        parts = [problem.data.subset(np.arange(a, min(a + BLOCK_POSES, n))) for a in range(0, n, BLOCK_POSES)]
+        made = [problem.on(part) for part in parts]
+        problem.__dict__["_blocks"] = made
+    return made
+
+
+def _forget(block: ProblemRows) -> None:
+    """Drop a block's kept frames once used (kept for every block, they would add up to all poses')."""
+    block.forget_frames()
+
+
+def evaluate(
+    problem: ProblemRows, theta: np.ndarray, cols: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Residuals and (for ``cols``) Jacobian rows of a large problem, block by block."""
+    res, jac = [], []
+    for block in blocks(problem):
+        r, j = block.rows(theta, cols)
+        _forget(block)
+        res.append(r)
+        jac.append(j)
+    return np.concatenate(res), (np.concatenate(jac) if cols is not None else np.empty((0, 0)))
+
+
+def target_frames(
+    problem: ProblemRows, theta: np.ndarray, in_instrument: bool
+) -> tuple[Frames, np.ndarray, np.ndarray]:
+    """:meth:`ProblemRows.target_frames` of a large problem: its frames hold the tip frame only."""
+    tips_r, tips_p, rots, poss = [], [], [], []
+    for block in blocks(problem):
+        frames, rot, pos = block.target_frames(theta, in_instrument)
+        _forget(block)
+        tips_r.append(frames.tip_rotation.copy())  # a view would keep every frame of the block
+        tips_p.append(frames.tip_translation.copy())
+        rots.append(rot)
+        poss.append(pos)
+    tip = Frames(np.concatenate(tips_r)[None], np.concatenate(tips_p)[None])
+    return tip, np.concatenate(rots), np.concatenate(poss)
+
+
+def triangle(
+    problem: ProblemRows,
+    theta: np.ndarray,
+    free: np.ndarray,
+    x_scale: np.ndarray,
+    extra: tuple[np.ndarray, np.ndarray],
+) -> np.ndarray:
+    """The triangle R (P + 1, P + 1) of the QR of ``[J · x_scale, r]`` over the free columns,
+    with the rows ``extra`` (their Jacobian and residuals) below the data's, block by block."""
+    cols = np.arange(problem.n_params)[free]
+    tri = np.empty((0, len(cols) + 1))
+    for block in blocks(problem):
+        r, j = block.rows(theta, cols)
+        _forget(block)
+        tri = _r_of(np.vstack([tri, np.column_stack([j * x_scale, r])]))
+    jac, res = extra
+    return _r_of(np.vstack([tri, np.column_stack([jac * x_scale, res])]))
+
+
+def _r_of(matrix: np.ndarray) -> np.ndarray:
+    """The triangle R of the QR of ``matrix`` (LAPACK's blocked Householder QR)."""
+    return np.asarray(np.linalg.qr(matrix, mode="r"))
+
+
+def gram(problem: ProblemRows, theta: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """``JᵀJ`` over the free columns (P, P), summed block by block for a large problem."""
+    cols = np.arange(problem.n_params)[free]
+    if not is_large(problem):
+        j = problem.jacobian(theta, cols)
+        return j.T @ j
+    out = np.zeros((len(cols), len(cols)))
+    for block in blocks(problem):
+        j = block.rows(theta, cols)[1]
+        _forget(block)
+        out += j.T @ j
+    return out
+
+
+def normal_terms(
+    problem: ProblemRows, theta: np.ndarray, free: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, float, int]:
+    """``JᵀJ`` (P, P), ``Jᵀr`` (P,), ``rᵀr`` and the number of rows, over the free columns, block
+    by block for a large problem (the Jacobian of every pose is never held)."""
+    cols = np.arange(problem.n_params)[free]
+    parts = blocks(problem) if is_large(problem) else [problem]
+    gram, grad, rr, rows = np.zeros((len(cols), len(cols))), np.zeros(len(cols)), 0.0, 0
+    for part in parts:
+        res, jac = part.rows(theta, cols)
+        if part is not problem:
+            _forget(part)
+        gram, grad, rr, rows = gram + jac.T @ jac, grad + jac.T @ res, rr + float(res @ res), rows + len(res)
+    return gram, grad, rr, rows
+
+
+def lm_triangle(
+    problem: ProblemRows,
+    full: Callable[[np.ndarray], np.ndarray],
+    free: np.ndarray,
+    x_scale: np.ndarray,
+    prior: tuple[np.ndarray, np.ndarray],
+) -> Callable[[np.ndarray], np.ndarray] | None:
+    """For :func:`pincal.identify.lm.levenberg_marquardt` on a large problem (else None): ``sub`` (the free
+    unknowns) -> the triangle of ``[J r]`` with the solver's prior rows ``w · (sub - nominal)`` on
+    the first free unknowns below the data's (``prior``: their weights ``w`` and nominal values)."""
+    if not is_large(problem):
+        return None
+    weights, nominal = prior
+    held = np.eye(len(weights), len(x_scale)) * weights[:, None]
+
+    def make(sub: np.ndarray) -> np.ndarray:
+        return triangle(problem, full(sub), free, x_scale, (held, weights * (sub[: len(weights)] - nominal)))
+
+    return make
+
+
+def sampled(setup: _Setup) -> _Setup:
+    """``setup`` on a random subset of :data:`SAMPLE_POSES` poses when its problem is large."""
+    return replace(setup, problem=sample(setup.problem)) if is_large(setup.problem) else setup
+
+
+def sample_poses(data: Dataset) -> Dataset:
+    """``data``, or a random subset of :data:`SAMPLE_POSES` of its poses (seed 0, in row order)."""
+    if len(data) <= SAMPLE_POSES:
+        return data
+    return data.subset(np.sort(np.random.default_rng(0).choice(len(data), SAMPLE_POSES, replace=False)))
+
+
+def sample(problem: ProblemRows) -> ProblemRows:
+    """The problem on a random subset of :data:`SAMPLE_POSES` poses (seed 0, in row order)."""
+    return problem.on(sample_poses(problem.data))

@@ -1,0 +1,192 @@
+"""The guard: a calibration is exported only when its own validation says it beats the URDF.
+
+On the fitted poses alone, :func:`judge` compares two models by linearised leave-one-pose-out
+cross-validation (each pose's residuals predicted by the fit without it: ``e = (I - H)⁻¹ r`` on
+that pose's rows, ``H`` the hat matrix of the fit with its pull toward the URDF; for distance
+data, a pose's rows are those of every pair holding it):
+
+- the fit (the chosen geometry, with its registration, tool, fixed points or effect);
+- the nominal model: URDF geometry, only the registration, tool and fixed points fitted.
+
+The fit is kept when it is *reliably* better: the mean over poses of (nominal's squared
+validation error - the fit's) is above :data:`Z_MIN` standard errors. Otherwise the data cannot
+support a calibration better than the nominal model, and :func:`pincal.calibrate` exports the
+nominal geometry (with its fitted registration and tool: no worse than the URDF on these data),
+and says so; ``force_fit=True`` (``--force-fit``) exports the fit anyway.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.optimize import OptimizeResult
+
+from pincal.data.dataset import Dataset
+from pincal.identify.calibration import Calibration
+from pincal.identify.folds import held_out_rows
+from pincal.identify.identifiability import Identifiability
+from pincal.identify.measurements import Problem
+from pincal.identify.prior import choose_weight, pulled
+from pincal.identify.records import Guard, PriorChoice
+from pincal.identify.solver import Setup, assess, solve
+
+#: The fit is kept when its validation gain over the nominal model is this many standard errors.
+Z_MIN = 2.0
+
+
+def loo_squared_errors(setup: Setup, theta: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """Each pose's squared leave-one-pose-out validation error [m²] of the fit ``theta`` over
+    the unknowns ``free``, with the pull of ``setup.prior_weight`` on the geometric ones."""
+    problem = setup.problem
+    jac = problem.jacobian(theta, free) * setup.scale[free]
+    res = problem.residuals(theta)
+    pen = pulled(setup, free).astype(float)
+    gram = jac.T @ jac + setup.prior_weight**2 * np.diag(pen)
+    spread = np.linalg.lstsq(gram, jac.T, rcond=None)[0].T  # J (JᵀJ + w²P)⁻¹, (rows, k)
+    out = []
+    for rows in held_out_rows(problem, None, 0):
+        hat = jac[rows] @ spread[rows].T
+        err = np.linalg.lstsq(np.eye(len(rows)) - hat, res[rows], rcond=None)[0]
+        out.append(float(err @ err))
+    return np.array(out)
+
+
+def judge(
+    setup: Setup, theta: np.ndarray, nominal: np.ndarray, free: np.ndarray, forced: bool = False
+) -> Guard:
+    """Compare the fit ``theta`` (unknowns ``free``) with the registration-only θ ``nominal``.
+
+    Args:
+        setup: the problem, with the pull's weight the fit used.
+        theta: the fit.
+        nominal: the nominal model with its registration, tool and points fitted.
+        free: mask of the fitted unknowns.
+        forced: export the fit whatever the verdict (``--force-fit``).
+    """
+    setup = judged_on(setup)
+    n_model = setup.problem.n_model
+    registration = free & (np.arange(len(free)) >= n_model)
+    fit = loo_squared_errors(setup, theta, free)
+    base = loo_squared_errors(setup, nominal, registration) if registration.any() else _plain(setup, nominal)
+    gain = base - fit
+    stderr = float(np.std(gain, ddof=1) / np.sqrt(len(gain))) if len(gain) > 1 else 0.0
+    z = float(np.mean(gain) / stderr) if stderr > 0 else 0.0  # no spread: nothing but the registration moved
+    reliable = z > Z_MIN
+    return Guard(_rms_mm(fit), _rms_mm(base), z, Z_MIN, reliable or forced, forced)
+
+
+#: Above this many poses (position or pose data), the guard judges a random subset of them
+#: (seed 0): its leave-one-pose-out loop would take minutes on 10⁶ poses for a verdict that many
+#: poses settle long before.
+JUDGED_POSES = 5_000
+
+
+def judged_on(setup: Setup) -> Setup:
+    """``setup``, or the same on :data:`JUDGED_POSES` random poses of a large position or pose set."""
+    problem = setup.problem
+    if len(problem.data) <= JUDGED_POSES or not problem.measurement.measure.registered:
+        return setup
+    keep = np.sort(np.random.default_rng(0).choice(len(problem.data), JUDGED_POSES, replace=False))
+    sub = Problem(problem.model, problem.measurement, problem.data.subset(keep), problem.extension)
+    return replace(setup, problem=sub)
+
+
+def _plain(setup: Setup, nominal: np.ndarray) -> np.ndarray:
+    """Each pose's squared residual of the nominal model when nothing of it is fitted [m²]."""
+    res = setup.problem.residuals(nominal)
+    return np.array([float(res[rows] @ res[rows]) for rows in held_out_rows(setup.problem, None, 0)])
+
+
+def _rms_mm(squared: np.ndarray) -> float:
+    """RMS over poses of the validation error norm [mm], from the squared norms [m²]."""
+    return float(np.sqrt(np.mean(squared))) * 1e3
+
+
+@dataclass(frozen=True)
+class Pull:
+    """How :func:`pincal.calibrate` holds the geometric corrections near the URDF, and when it
+    exports the fit.
+
+    Attributes:
+        weight: ``"auto"`` (chosen by maximum evidence on the fitted poses, :mod:`pincal.identify.prior`)
+            or a weight [per natural unit: 0.1 m of correction weighs as a residual of 0.1 m x
+            weight].
+        force_fit: export the fit even when the guard finds it not reliably better than the
+            nominal model on its own validation (:func:`judge`).
+    """
+
+    weight: float | str = "auto"
+    force_fit: bool = False
+
+
+#: ``pincal calibrate``'s default: the weight chosen from the data, the guard on.
+DEFAULT_PULL = Pull()
+
+
+@dataclass(frozen=True, eq=False)
+class Protected:
+    """A fit with its pull chosen and judged: what :func:`pincal.calibrate` exports.
+
+    Attributes:
+        setup: the problem carrying the chosen pull's weight.
+        theta: the exported θ: the fit, or ``nominal`` when the guard refused the fit.
+        nominal: the registration-only θ (nominal geometry; registration, tool, points fitted).
+        identifiability: the identifiable set the fit used.
+        result: the solver's result of the fit.
+        prior: the pull's weight and how it was chosen.
+        guard: the fit judged against the nominal model.
+        screening: the problem and fit the outliers are screened on: the default pull's fit
+            (:data:`pincal.identify.solver.PRIOR_WEIGHT`) when the weight is chosen, as its choice is made
+            for Gaussian residuals and gross outliers would inflate it; else the fit.
+    """
+
+    setup: Setup
+    theta: np.ndarray
+    nominal: np.ndarray
+    identifiability: Identifiability
+    result: OptimizeResult
+    prior: PriorChoice
+    guard: Guard
+    screening: tuple[Setup, np.ndarray]
+
+    @property
+    def free(self) -> np.ndarray:
+        """Mask of the fitted unknowns."""
+        return self.identifiability.identifiable
+
+    def assessed(self, test: Dataset | None = None) -> Calibration:
+        """The calibration record (:func:`pincal.identify.solver.assess`) with the pull and the guard."""
+        cal = assess(self.setup, self.theta, self.nominal, self.identifiability, self.result, test)
+        return replace(cal, prior=self.prior, guard=self.guard)
+
+
+def protect(
+    setup: Setup,
+    nominal: np.ndarray,
+    ident: Identifiability,
+    base: np.ndarray,
+    pull: Pull = DEFAULT_PULL,
+    loss: str = "linear",
+    f_scale: float = 1e-4,
+) -> Protected:
+    """Choose the pull toward the URDF (:func:`pincal.identify.prior.choose_weight`), fit, and keep the
+    fit only when it reliably beats the nominal model (:func:`judge`), or when ``force_fit``.
+
+    Args:
+        setup: the problem.
+        nominal: the registration-only θ.
+        ident: the identifiable set: the unknowns to fit.
+        base: the fit at the default pull (:data:`pincal.identify.solver.PRIOR_WEIGHT`) with ``loss``.
+        pull: the weight (``auto`` or given) and ``force_fit``.
+        loss, f_scale: the fit's loss and where it down-weights [m] (the weight is chosen with
+            the plain least squares of the evidence's Gaussian model).
+    """
+    free = ident.identifiable
+    choice, chosen, theta, result = choose_weight(setup, base, free, pull.weight, loss)
+    if loss != "linear":
+        theta, result = solve(chosen, base, free, loss, f_scale)
+    verdict = judge(chosen, theta, nominal, free, pull.force_fit)
+    kept = theta if verdict.kept_fit else nominal
+    screening = (setup, base) if choice.chosen_by == "evidence" else (chosen, theta)
+    return Protected(chosen, kept, nominal, ident, result, choice, verdict, screening)

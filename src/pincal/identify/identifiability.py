@@ -1,0 +1,201 @@
+"""Which parameters the data can identify: SVD for the rank, QR with column pivoting for the set.
+
+The identification Jacobian is scaled so that its columns are comparable (a rotation [rad] is
+worth its lever arm [m]); its singular values give the numerical rank ``r``; QR with column
+pivoting picks ``r`` well-conditioned columns. Ties between exactly redundant columns are broken
+by a mild preference: the instrument and tool unknowns first, then joints nearer the tip, so a
+redundant base placement is reported as absorbed by the registration, and a joint's translation
+along its own axis as absorbed by the next joint's placement (or, along a run of parallel axes,
+by the last placement of the run). Every parameter left out gets a
+reason: no effect on the measurements, or the kept parameters that absorb it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+import scipy.linalg
+
+from pincal.data.dataset import Dataset
+from pincal.errors import IdentifiabilityError
+from pincal.identify.measurements import Problem
+from pincal.identify.registration import quaternions
+
+#: Singular values below ``RCOND · σ_max`` count as zero.
+RCOND = 1e-6
+
+
+@dataclass(frozen=True)
+class Identifiability:
+    """The identifiable set of a problem.
+
+    Attributes:
+        identifiable: (P,) mask of the parameters the solver estimates.
+        singular_values: singular values of the scaled Jacobian over the candidate parameters.
+        condition_number: of the scaled Jacobian restricted to the identifiable set.
+        reasons: parameter name -> why it is held at its current value.
+        gauges: motions of the whole set-up no measurement sees (fixed-point data), each holding
+            a parameter (:mod:`pincal.identify.fixed_points`).
+    """
+
+    identifiable: np.ndarray
+    singular_values: np.ndarray
+    condition_number: float
+    reasons: dict[str, str]
+    gauges: tuple[str, ...] = ()
+
+    @property
+    def n_identifiable(self) -> int:
+        """Number of identifiable parameters."""
+        return int(self.identifiable.sum())
+
+
+def parameter_scale(units: tuple[str, ...] | list[str], length: float) -> np.ndarray:
+    """Natural size of each parameter: 1 for metres, ``1 / length`` for radians [rad/m]."""
+    return np.array([1.0 / length if u == "rad" else 1.0 for u in units])
+
+
+def analyse(
+    jacobian: np.ndarray,
+    names: tuple[str, ...],
+    scale: np.ndarray,
+    candidates: np.ndarray,
+    preference: np.ndarray,
+    held: dict[str, str] | None = None,
+    rcond: float = RCOND,
+) -> Identifiability:
+    """Find the identifiable set.
+
+    Args:
+        jacobian: (m, P) identification Jacobian at the current estimate.
+        names: the P parameter names.
+        scale: (P,) natural size of each parameter (see :func:`parameter_scale`).
+        candidates: (P,) mask of the parameters that may be estimated.
+        preference: (P,) weights > 0 that break ties between redundant columns (larger wins).
+        held: reasons for parameters that are not candidates.
+        rcond: relative singular-value threshold of the rank.
+    """
+    reasons = dict(held or {})
+    cand = np.flatnonzero(candidates)
+    js = jacobian[:, cand] * scale[cand]
+    if js.shape[0] > js.shape[1]:  # same Gram matrix, far fewer rows: R of a QR
+        js = np.linalg.qr(js, mode="r")
+    norms = np.linalg.norm(js, axis=0)
+    if cand.size == 0 or not np.any(norms > 0):
+        raise IdentifiabilityError(
+            "no parameter has any effect on these measurements: the poses are too few or all alike"
+        )
+    sv = np.linalg.svd(js, compute_uv=False)
+    tol = rcond * sv[0]
+    rank = int(np.sum(sv > tol))
+    _, piv = scipy.linalg.qr(js * preference[cand], mode="r", pivoting=True)
+    keep_local = np.sort(piv[:rank])
+    keep = cand[keep_local]
+    mask = np.zeros(len(names), dtype=bool)
+    mask[keep] = True
+    kept = js[:, keep_local]
+    sk = np.linalg.svd(kept, compute_uv=False)
+    cond = float(sk[0] / sk[-1]) if sk[-1] > 0 else float("inf")
+    rest = np.array([local for local, idx in enumerate(cand) if not mask[idx]], dtype=int)
+    if rest.size:  # what each left-out column is made of, all in one least-squares solve
+        coefs = np.linalg.lstsq(kept, js[:, rest], rcond=None)[0]  # (kept, left out)
+        weights = np.abs(coefs) * np.linalg.norm(kept, axis=0)[:, None]
+    for j, local in enumerate(rest):
+        idx, size = cand[local], float(np.linalg.norm(js[:, local]))
+        if size <= tol:
+            reasons[names[idx]] = "has no effect on these measurements"
+            continue
+        weight = weights[:, j]
+        top = [names[keep[k]] for k in np.argsort(-weight)[:3] if weight[k] > 1e-3 * size]
+        reasons[names[idx]] = "absorbed by " + ", ".join(top) if top else "not identifiable from these poses"
+    return Identifiability(mask, sv, cond, reasons)
+
+
+def lost_parameters(
+    jacobian: np.ndarray,
+    reference: np.ndarray,
+    names: tuple[str, ...],
+    scale: np.ndarray,
+    candidates: np.ndarray,
+    rcond: float = RCOND,
+) -> tuple[int, list[str]]:
+    """Parameters that varied poses identify but these poses do not.
+
+    Args:
+        jacobian: (m, P) identification Jacobian on the data.
+        reference: (m', P) the same on varied poses (random within the joint limits).
+        names: the P parameter names.
+        scale: (P,) natural size of each parameter.
+        candidates: (P,) mask of the parameters that may be estimated.
+        rcond: relative singular-value threshold of the rank.
+
+    Returns:
+        The number of parameters the varied poses identify, and the names that carry the
+        directions the data cannot see (empty when the data's rank is the varied poses' rank),
+        largest share first.
+    """
+    cand = np.flatnonzero(candidates)
+    ref = reference[:, cand] * scale[cand]
+    if ref.shape[0] > ref.shape[1]:
+        ref = np.linalg.qr(ref, mode="r")
+    sv_ref = np.linalg.svd(ref, compute_uv=False)
+    rank_ref = int(np.sum(sv_ref > rcond * sv_ref[0])) if sv_ref.size else 0
+    _, piv = scipy.linalg.qr(ref, mode="r", pivoting=True)
+    keep = np.sort(piv[:rank_ref])  # a set the varied poses identify
+    js = jacobian[:, cand[keep]] * scale[cand[keep]]
+    if js.shape[0] > js.shape[1]:
+        js = np.linalg.qr(js, mode="r")
+    _, sv, vt = np.linalg.svd(js, full_matrices=True)
+    sv_full = np.zeros(len(keep))
+    sv_full[: len(sv)] = sv
+    blind = vt[sv_full <= rcond * max(float(sv_full[0]), 1e-300)]
+    if blind.size == 0:
+        return rank_ref, []
+    share = np.sqrt(np.sum(blind**2, axis=0))
+    order = np.argsort(-share)
+    return rank_ref, [names[cand[keep[k]]] for k in order if share[k] > 0.2 * share[order[0]]]
+
+
+def check_rank(
+    problem: Problem,
+    theta: np.ndarray,
+    jacobian: np.ndarray,
+    scale: np.ndarray,
+    candidates: np.ndarray,
+    rcond: float,
+) -> int:
+    """How many parameters varied poses identify; an error if these poses identify fewer.
+
+    The reference is the same problem on random poses within the joint limits, measured exactly;
+    ``jacobian`` is the data's, at ``theta``.
+
+    Raises:
+        IdentifiabilityError: naming the parameters the data cannot see, and the likely cause.
+    """
+    robot, data = problem.model.robot, problem.data
+    n_ref = max(60, 2 * problem.n_params)
+    q_ref = robot.random_configurations(n_ref, np.random.default_rng(0), margin=0.05)
+    quats = np.tile([1.0, 0.0, 0.0, 0.0], (n_ref, 1)) if data.has_orientation else None
+    blank = Dataset(data.joint_names, q_ref, np.zeros((n_ref, 3)), quats)
+    meas = replace(problem.measurement, pairs=None)
+    points, rotations = Problem(problem.model, meas, blank, problem.extension).predict(theta)
+    exact = replace(blank, points=points, quaternions=None if quats is None else quaternions(rotations))
+    reference = Problem(problem.model, meas, exact, problem.extension)
+    rank, lost = lost_parameters(jacobian, reference.jacobian(theta), problem.names, scale, candidates, rcond)
+    if not lost or len(jacobian) <= rank:  # too few equations: the caller says so
+        return rank
+    span = np.ptp(data.q, axis=0)
+    still = [j for j, s, p in zip(robot.joint_names, span, robot.prismatic) if s < (1e-4 if p else 1e-3)]
+    if len(data) < 3 or len(still) == robot.n_joints:
+        cause = "all the poses are alike (no joint moves)"
+    elif still:
+        cause = f"joint(s) {', '.join(still)} never move"
+    else:
+        cause = f"{len(data)} poses do not vary the joints enough"
+    names = ", ".join(lost[:8]) + (f" and {len(lost) - 8} more" if len(lost) > 8 else "")
+    raise IdentifiabilityError(
+        f"the data cannot identify {names}, which varied poses would: {cause}. Measure poses that "
+        "move every joint over its range, fit fewer parameters (--model offsets), or pass "
+        "--partial to fit only what this data identifies"
+    )

@@ -1,0 +1,133 @@
+"""K-fold cross-validation over poses of a given fit: the error a calibration makes on poses it
+did not fit (:func:`pincal.auto.crossval.cross_validate` fits with :func:`pincal.calibrate`; the pipeline,
+above
+this module, passes its own fit for the nested cross-validation).
+
+For position and pose data, each fold's held-out poses are predicted with the registration and
+tool fitted on the other folds. For distance data, the held-out errors are those of every pair
+with at least one held-out pose (the other pose may have been fitted): this is how a distance
+calibration is judged on new poses without an instrument registration. A pair whose two poses
+are held out in different folds is judged twice, once by each fold's model.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from pincal.data.dataset import Dataset
+from pincal.errors import DataError, IdentifiabilityError
+from pincal.identify.calibration import Calibration
+from pincal.identify.evaluation import ErrorStats, pose_errors
+from pincal.identify.folds import fold_indices
+from pincal.identify.measurements import Problem, all_pairs
+from pincal.kinematics.models import Model
+from pincal.robot.robots import Robot
+from pincal.threads import limited
+
+#: A fit: :func:`pincal.calibrate`'s signature, ``fit(robot, data, model, measure, **options)``.
+Fit = Callable[..., Calibration]
+
+
+@dataclass(frozen=True)
+class CrossValidation:
+    """Pooled held-out errors of a K-fold cross-validation.
+
+    Attributes:
+        folds: number of folds.
+        urdf: the URDF as it is (nominal tool, registration fitted on the other folds).
+        before: nominal kinematics with registration and tool fitted on the other folds.
+        after: the calibrated model.
+        calibrations: the calibration of each fold.
+    """
+
+    folds: int
+    urdf: ErrorStats
+    before: ErrorStats
+    after: ErrorStats
+    calibrations: tuple[Calibration, ...]
+
+    @property
+    def gain(self) -> float:
+        """Mean held-out error before / after calibration."""
+        return self.before.mean_mm / self.after.mean_mm
+
+    @property
+    def gain_vs_urdf(self) -> float:
+        """Mean held-out error of the URDF as it is / after calibration."""
+        return self.urdf.mean_mm / self.after.mean_mm
+
+
+def held_out_errors(cal: Calibration, data: Dataset, held: np.ndarray) -> list[np.ndarray]:
+    """Held-out errors [m] of the URDF, before and after, for one fold."""
+    out = []
+    for meas, theta in (
+        (cal.urdf_measurement, cal.urdf_theta),
+        (cal.measurement, cal.nominal_theta),
+        (cal.measurement, cal.theta),
+    ):
+        if cal.measurement.measure.by_pairs:
+            pairs = all_pairs(len(data))
+            pairs = pairs[np.isin(pairs, held).any(axis=1)]
+            problem = Problem(cal.model, replace(meas, pairs=pairs), data, cal.extension)
+            out.append(np.abs(problem.residuals(theta)))
+        else:
+            out.append(pose_errors(cal.model, meas, theta, data.subset(held), cal.extension)[0])
+    return out
+
+
+@limited
+def cross_validate_with(
+    fit: Fit,
+    robot: Robot,
+    data: Dataset,
+    model: str | Model = "placements",
+    measure: str | None = None,
+    folds: int = 7,
+    seed: int = 0,
+    *,
+    progress: Callable[[int, int, str], None] | None = None,
+    **options: Any,
+) -> CrossValidation:
+    """Calibrate with ``fit`` on K-1 folds, judge on the held-out fold, pool the held-out errors.
+
+    Args:
+        fit: the calibration, called as ``fit(robot, data, model, measure, **options)``.
+        robot: the robot.
+        data: all poses.
+        model: the parameterization.
+        measure: the measurement (default as :func:`pincal.calibrate`).
+        folds: number of folds (``len(data)`` for leave-one-out).
+        seed: seed of the partition.
+        progress: called as ``progress(done, folds, label)`` after each fold.
+        **options: passed to ``fit``; each fold fits what its poses identify
+            (``partial=True``: a fold may lack the variety of the whole).
+    """
+    if not 2 <= folds <= len(data):
+        raise DataError(f"cross-validation needs between 2 and {len(data)} folds (one per pose), got {folds}")
+    pooled: list[list[np.ndarray]] = [[], [], []]
+    cals = []
+    for k, held in enumerate(fold_indices(len(data), folds, seed)):
+        kept = np.setdiff1d(np.arange(len(data)), held)
+        try:
+            cal = fit(robot, data.subset(kept), model, measure, **{**options, "partial": True})
+        except IdentifiabilityError as exc:  # said of the fold, it would ask for fewer poses than given
+            if exc.poses_needed is None:
+                raise
+            fits = (n - -(-n // folds) for n in range(len(data), 10 * exc.poses_needed + folds + 1))
+            least = len(data) + next(k for k, n in enumerate(fits) if n >= exc.poses_needed)
+            raise IdentifiabilityError(
+                f"{folds}-fold cross-validation fits {len(kept)} of the {len(data)} poses at a time, which "
+                f"give too few equations: measure at least {least} poses, or use fewer folds (--folds)",
+                least,
+            ) from None
+        cals.append(cal)
+        for store, errs in zip(pooled, held_out_errors(cal, data, held)):
+            store.append(errs)
+        if progress is not None:
+            progress(k + 1, folds, f"cross-validation, fold {k + 1} of {folds}")
+    urdf, before, after = (ErrorStats.of(np.concatenate(p)) for p in pooled)
+    return CrossValidation(folds, urdf, before, after, tuple(cals))

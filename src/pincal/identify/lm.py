@@ -1,0 +1,103 @@
+"""Levenberg-Marquardt with LAPACK's QR: the fits without a robust loss.
+
+Why not ``scipy.optimize.least_squares(method="lm")``: MINPACK's ``lmder`` factors each Jacobian
+with its own unblocked Householder QR, which costs 2.5-3 × NumPy's (LAPACK's blocked) QR of the
+same matrix: 4.8 against 2.7 ms for 3,000 × 45, 68 against 26 ms for 30,000 × 45 (one thread,
+this machine kind), and that QR is most of an iteration. This is the same method (Moré 1978:
+scaled variables, the Gauss-Newton step when it lowers the cost, else a damped one) with one
+LAPACK QR of ``[J r]`` per Jacobian; damped steps only need the small ``n × n`` triangle.
+Robust losses keep ``least_squares`` (trust-region reflective).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+from scipy.optimize import OptimizeResult
+
+#: First damping, relative to the largest diagonal entry of ``JᵀJ``, when the Gauss-Newton step fails.
+FIRST_DAMPING = 1e-4
+#: Damping grows by this factor after a failed step and shrinks by it after a successful one.
+DAMPING_FACTOR = 10.0
+
+
+def _step(tri: np.ndarray, qtr: np.ndarray, damping: float) -> np.ndarray:
+    """argmin ‖R δ + Qᵀr‖² + λ ‖δ‖² (minimum norm where R is singular)."""
+    if damping > 0.0:
+        n = len(qtr)
+        tri = np.vstack([tri, np.sqrt(damping) * np.eye(n)])
+        qtr = np.concatenate([qtr, np.zeros(n)])
+    return -np.linalg.lstsq(tri, qtr, rcond=None)[0]
+
+
+def levenberg_marquardt(
+    fun: Callable[[np.ndarray], np.ndarray],
+    jac: Callable[[np.ndarray], np.ndarray],
+    x0: np.ndarray,
+    x_scale: np.ndarray,
+    xtol: float = 1e-12,
+    ftol: float = 1e-12,
+    gtol: float = 1e-12,
+    max_nfev: int = 200,
+    triangle: Callable[[np.ndarray], np.ndarray] | None = None,
+) -> OptimizeResult:
+    """Minimise ``½‖fun(x)‖²``; arguments and result as ``scipy.optimize.least_squares``.
+
+    Args:
+        fun, jac: residuals (m,) and their Jacobian (m, n) at ``x``.
+        x0: the start (n,).
+        x_scale: each variable's characteristic size (the step is taken in ``x / x_scale``).
+        xtol, ftol, gtol: stop when the scaled step is below ``xtol`` relative to ``x``, when
+            the cost falls by less than ``ftol`` relative (and is predicted to), or when no
+            column of the Jacobian is more than ``gtol`` from orthogonal to the residuals.
+        max_nfev: most evaluations of ``fun``.
+        triangle: if given, ``triangle(x)`` is the triangle R of the QR of ``[jac(x) · x_scale,
+            fun(x)]`` (built block by block for large data, :mod:`pincal.identify.chunked`), and ``jac`` is
+            not called: every step needs only R.
+    """
+    x, res = np.array(x0, dtype=float), fun(x0)
+    cost, nfev, njev, damping = 0.5 * float(res @ res), 1, 0, 0.0
+    status, message = 0, "the maximum number of function evaluations is exceeded"
+    while nfev < max_nfev and status == 0:
+        if triangle is None:
+            tri_all = np.asarray(np.linalg.qr(np.column_stack([jac(x) * x_scale, res]), mode="r"))
+        else:
+            tri_all = triangle(x)
+        njev += 1
+        n = len(x)
+        tri, qtr = tri_all[:n, :n], tri_all[:n, n]
+        columns = np.linalg.norm(tri, axis=0)  # JᵀJ = RᵀR and Jᵀr = Rᵀ(Qᵀr): R says all
+        res_norm = np.sqrt(2.0 * cost)
+        cosines = np.abs(tri.T @ qtr) / np.where(columns > 0, columns, 1.0)
+        if res_norm == 0.0 or np.max(cosines) <= gtol * res_norm:
+            status, message = 1, "gtol: the residuals are orthogonal to the Jacobian's columns"
+            break
+        largest = float(np.max(np.sum(tri**2, axis=0)))
+        while nfev < max_nfev:
+            step = _step(tri, qtr, damping)
+            trial = x + step * x_scale
+            res_trial = fun(trial)
+            nfev += 1
+            cost_trial = 0.5 * float(res_trial @ res_trial)
+            small = np.linalg.norm(step) <= xtol * (xtol + np.linalg.norm(x / x_scale))
+            predicted = 0.5 * float(qtr @ qtr - np.sum((tri @ step + qtr) ** 2))  # by the linear model
+            if cost_trial < cost:
+                converged = cost - cost_trial <= ftol * cost and predicted <= ftol * cost
+                x, res, cost = trial, res_trial, cost_trial
+                damping = damping / DAMPING_FACTOR if damping > 1e-12 * largest else 0.0
+                if converged:
+                    status, message = 2, "ftol: the cost no longer falls"
+                elif small:
+                    status, message = 3, "xtol: the step is below the tolerance"
+                break
+            if small:  # no lower cost within the tolerance of x: x is the minimum
+                status, message = 3, "xtol: the step is below the tolerance"
+                break
+            if predicted <= ftol * cost:  # even the linear model has nothing left to gain
+                status, message = 2, "ftol: the cost no longer falls"
+                break
+            damping = max(damping * DAMPING_FACTOR, FIRST_DAMPING * largest)
+    return OptimizeResult(
+        x=x, cost=cost, fun=res, nfev=nfev, njev=njev, status=status, success=status > 0, message=message
+    )

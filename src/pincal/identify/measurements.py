@@ -1,0 +1,319 @@
+"""Measurement models: residuals and analytic Jacobians for position, pose and distance data.
+
+The unknowns are stacked as ``θ = [model parameters | instrument (6) | tool (3 or 6)]``:
+
+- *instrument*: the registration ``instrument_T_base = instrument_T_base⁰ · exp(ρ)`` (a twist
+  ρ, order (v, ω)), estimated unless the instrument frame is given (``--instrument-frame base``);
+- *tool*: the measured point on the tip frame (3, [m]) for position and distance data, or the
+  target frame ``tip_T_target = tip_T_target⁰ · exp(τ)`` (6) for pose data.
+
+Residuals (model minus measurement):
+
+- ``position``: the point in the instrument frame, 3 per pose [m];
+- ``pose``: the position (3 [m]) and ``w · log3(R_measuredᵀ R_model)`` (3), with
+  ``w = rotation_weight`` [m/rad] so that 1 mrad weighs as much as ``w`` mm;
+- ``distance`` (Gao et al. 2013, eqs. 13-18): ``|p_i - p_j|`` (model, base frame) minus the
+  measured distance, one per pair [m]; it needs no registration;
+- ``points``: the tip (base frame) minus the position of the fixed point the row names, 3 per
+  row [m], then one per known distance between points (:mod:`pincal.identify.fixed_points`); the points'
+  positions (3 each, [m]) take the registration's place in θ.
+
+Position and pose data of many poses are evaluated block by block (:mod:`pincal.identify.chunked`). Each
+kind's rows are its class's (:mod:`pincal.identify.kinds`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from pincal.data.dataset import Dataset
+from pincal.data.pairs import all_pairs as all_pairs  # re-exported: the pairings live in pincal.data.pairs
+from pincal.data.pairs import gao_pairs as gao_pairs
+from pincal.identify import chunked
+from pincal.identify.fixed_points import PointDistance, check_distances, point_index, point_means
+from pincal.identify.kinds import MeasurementKind, get_kind
+from pincal.kinematics.chain import Chain, Frames, forward, stacked_dot, twist_columns
+from pincal.kinematics.effects import Extension
+from pincal.kinematics.models import Model
+from pincal.options import MEASURES as MEASURES
+from pincal.options import ROTATION_WEIGHT
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """What is measured and what is known about the set-up.
+
+    Attributes:
+        kind: ``position``, ``pose``, ``distance`` or ``points``.
+        instrument_T_base: the registration, or its initial guess when ``fit_instrument``.
+        fit_instrument: whether the registration is unknown (not used by ``distance``).
+        tool: ``tip_T_target`` (pose) or a point on the tip (its translation), or initial guess.
+        fit_tool: whether the tool is unknown.
+        rotation_weight: weight of orientation residuals [m/rad] (``pose`` only).
+        pairs: (m, 2) pose pairs for ``distance`` (default: all pairs).
+        points: the fixed points whose positions are unknowns (``points``).
+        point_distances: known distances between them (``points``), [m].
+    """
+
+    kind: str = "position"
+    instrument_T_base: pin.SE3 = pin.SE3.Identity()
+    fit_instrument: bool = True
+    tool: pin.SE3 = pin.SE3.Identity()
+    fit_tool: bool = True
+    rotation_weight: float = ROTATION_WEIGHT
+    pairs: np.ndarray | None = None
+    points: tuple[str, ...] = ()
+    point_distances: tuple[PointDistance, ...] = ()
+
+    def __post_init__(self) -> None:
+        get_kind(self.kind)  # a DataError naming the kinds if there is none of that name
+        check_distances(self.points, self.point_distances)
+
+    @property
+    def measure(self) -> MeasurementKind:
+        """The measurement kind :attr:`kind` names (:mod:`pincal.identify.kinds`)."""
+        return get_kind(self.kind)
+
+    @property
+    def n_instrument(self) -> int:
+        """Number of registration unknowns."""
+        return 6 if self.fit_instrument and self.measure.registered else 0
+
+    @property
+    def n_points(self) -> int:
+        """Number of unknown point coordinates (fixed-point data)."""
+        return 3 * len(self.points) if self.measure.fixed_points else 0
+
+    @property
+    def n_tool(self) -> int:
+        """Number of tool unknowns."""
+        return self.measure.tool_dof if self.fit_tool else 0
+
+    def names(self) -> tuple[list[str], list[str]]:
+        """Names and units of the measurement unknowns."""
+        names, units = [], []
+        if self.n_instrument:
+            names += [f"instrument.{c}" for c in ("tx", "ty", "tz", "rx", "ry", "rz")]
+            units += ["m"] * 3 + ["rad"] * 3
+        if self.n_points:
+            names += [f"point.{p}.{c}" for p in self.points for c in "xyz"]
+            units += ["m"] * self.n_points
+        if self.n_tool == 3:
+            names += ["tool.x", "tool.y", "tool.z"]
+            units += ["m"] * 3
+        elif self.n_tool == 6:
+            names += [f"tool.{c}" for c in ("tx", "ty", "tz", "rx", "ry", "rz")]
+            units += ["m"] * 3 + ["rad"] * 3
+        return names, units
+
+
+def unpack(n_model: int, measurement: Measurement, theta: np.ndarray) -> tuple[np.ndarray, pin.SE3, pin.SE3]:
+    """Split θ into model parameters, ``instrument_T_base`` and ``tip_T_target``."""
+    x = theta[:n_model]
+    k = n_model
+    reg = measurement.instrument_T_base
+    if measurement.n_instrument:
+        reg = reg * pin.exp6(pin.Motion(theta[k : k + 6]))
+        k += 6
+    k += measurement.n_points
+    tool = measurement.tool
+    if measurement.n_tool == 3:
+        tool = pin.SE3(tool.rotation, theta[k : k + 3].copy())
+    elif measurement.n_tool == 6:
+        tool = tool * pin.exp6(pin.Motion(theta[k : k + 6]))
+    return x, reg, tool
+
+
+class Problem:
+    """The residual function of a model, a measurement model and a dataset."""
+
+    def __init__(
+        self, model: Model, measurement: Measurement, data: Dataset, extension: Extension | None = None
+    ) -> None:
+        measurement.measure.check(data)
+        self.model = model
+        self.measurement = measurement
+        self.data = data
+        self.extension = extension
+        names, units = measurement.names()
+        ext_names = extension.names if extension else ()
+        ext_units = extension.units if extension else ()
+        self.names = (*model.names, *ext_names, *names)
+        self.units = (*model.units, *ext_units, *units)
+        self.n_model = model.n_params + len(ext_names)
+        self.regressors = extension.regressors(data.q) if extension else np.empty((len(data), 0))
+        self.pairs = np.empty((0, 2), dtype=int)
+        self.measured_distances = np.empty(0)
+        if measurement.measure.by_pairs:
+            self.pairs = measurement.pairs if measurement.pairs is not None else all_pairs(len(data))
+            self.measured_distances = np.linalg.norm(
+                data.points[self.pairs[:, 0]] - data.points[self.pairs[:, 1]], axis=1
+            )
+        self.measured_rotations = data.rotations() if measurement.measure.orientation else np.empty((0, 3, 3))
+        self.point_index = point_index(data, measurement.points) if measurement.measure.fixed_points else None
+        self._frames: tuple[Any, Any] = (None, None)  # the last θ's frames
+
+    def on(self, data: Dataset) -> Problem:
+        """The same problem on other poses (a block, a sample)."""
+        return Problem(self.model, self.measurement, data, self.extension)
+
+    def forget_frames(self) -> None:
+        """Drop the frames kept for the last θ (a block's, once used)."""
+        self._frames = (None, None)
+
+    @property
+    def n_params(self) -> int:
+        """Number of unknowns in θ."""
+        return len(self.names)
+
+    def split(self, theta: np.ndarray) -> tuple[np.ndarray, pin.SE3, pin.SE3]:
+        """Model parameters, ``instrument_T_base`` and ``tip_T_target`` for the unknowns θ."""
+        return unpack(self.n_model, self.measurement, theta)
+
+    def initial_theta(self) -> np.ndarray:
+        """θ for the nominal model and the measurement model's initial registration and tool."""
+        m, theta = self.measurement, np.zeros(self.n_params)
+        if m.n_tool == 3:
+            k = self.n_model + m.n_instrument + m.n_points
+            theta[k : k + 3] = m.tool.translation
+        if m.n_points and self.point_index is not None:  # each point at its rows' mean tip
+            means = point_means(self.target_frames(theta)[2], self.point_index, len(m.points))
+            theta[self.n_model : self.n_model + m.n_points] = means.reshape(-1)
+        return theta
+
+    def point_positions(self, theta: np.ndarray) -> np.ndarray:
+        """The fixed points' positions (K, 3) [m] in the base frame (fixed-point data)."""
+        return theta[self.n_model : self.n_model + self.measurement.n_points].reshape(-1, 3)
+
+    def row_poses(self) -> np.ndarray:
+        """The pose each residual row belongs to (-1: none, as a known distance's row); for
+        every measure but ``distance``, whose rows are pairs (:attr:`pairs`)."""
+        rows = np.repeat(np.arange(len(self.data)), self.measurement.measure.width)
+        return np.concatenate([rows, np.full(len(self.measurement.point_distances), -1)])
+
+    def reached(self, theta: np.ndarray) -> np.ndarray:
+        """The joint values the robot reaches (N, n): the commands plus the extension's error."""
+        if self.extension is None:
+            return self.data.q
+        q = self.data.q.copy()
+        q[:, self.extension.index] += self.regressors @ theta[self.model.n_params : self.n_model]
+        return q
+
+    def target_frames(
+        self, theta: np.ndarray, in_instrument: bool = False
+    ) -> tuple[Frames, np.ndarray, np.ndarray]:
+        """Chain frames, ``R_target`` (N, 3, 3) and ``p_target`` (N, 3) [m], in base axes (or in
+        the instrument's, ``in_instrument``)."""
+        key = (theta.tobytes(), in_instrument)
+        if self._frames[0] == key:  # a solver asks for residuals and Jacobian at the same θ
+            return self._frames[1]
+        if chunked.is_large(self):  # block by block (issue 33): the tip frame only
+            self._frames = (key, chunked.target_frames(self, theta, in_instrument))
+            return self._frames[1]
+        x, reg, tool = self.split(theta)
+        chain = self.model.chain(x[: self.model.n_params])
+        if in_instrument:
+            chain = Chain((reg * chain.placements[0], *chain.placements[1:]), chain.axes)
+        frames = forward(chain, self.reached(theta))
+        rot = stacked_dot(frames.tip_rotation, tool.rotation)
+        pos = frames.tip_translation + stacked_dot(frames.tip_rotation, tool.translation[:, None])[:, :, 0]
+        self._frames = (key, (frames, rot, pos))
+        return frames, rot, pos
+
+    def predict(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Predicted target positions (N, 3) [m] and rotations (N, 3, 3) in the instrument frame."""
+        _, rot, pos = self.target_frames(theta, in_instrument=True)
+        return pos, rot
+
+    def joint_sensitivity(self, theta: np.ndarray, joint: int) -> np.ndarray:
+        """How each pose's measured point moves per unit of joint ``joint`` (N, 3), instrument frame."""
+        frames, _, pos = self.target_frames(theta, in_instrument=True)
+        k = 2 * joint + 1
+        zeta = self.model.chain(theta[: self.model.n_params]).axes[joint][:, None]
+        return twist_columns(frames.rotations[k], frames.translations[k], zeta, pos)[0][:, :, 0]
+
+    def residuals(self, theta: np.ndarray) -> np.ndarray:
+        """Stacked residuals [m] (see the module docstring)."""
+        return self.rows(theta, None)[0]
+
+    def jacobian(self, theta: np.ndarray, free: np.ndarray | None = None) -> np.ndarray:
+        """Analytic Jacobian of :meth:`residuals` with respect to θ (its columns ``free``, a mask
+        or indices, if given: only those are computed)."""
+        cols = np.arange(self.n_params) if free is None else np.arange(self.n_params)[free]
+        return self.rows(theta, cols)[1]
+
+    def target_jacobian(
+        self,
+        theta: np.ndarray,
+        cols: np.ndarray,
+        frames: Frames,
+        target: tuple[np.ndarray, np.ndarray],
+        to_log: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """Jacobian of the target, for the unknowns ``cols``: each is a right-perturbation of a
+        frame. Rows: the target's velocity (N, 3, c) in the axes of ``frames``, then, given
+        ``to_log`` (N, 3, 3), that map of its angular velocity (N, 3, c)."""
+        m, n_geo = self.measurement, self.model.n_params
+        rot, pos = target
+        rotation = to_log is not None
+        out = np.zeros((len(self.data), 6 if rotation else 3, len(cols)))
+        jac_v, jac_w = out[:, :3], out[:, 3:]
+
+        def columns(k_rot: np.ndarray, k_pos: np.ndarray, zeta: np.ndarray) -> tuple[np.ndarray, Any]:
+            v, _ = twist_columns(k_rot, k_pos, zeta, pos, rotation=False)
+            if to_log is None:
+                return v, None
+            return v, stacked_dot(to_log @ k_rot, zeta[3:])
+
+        def add(k_rot: np.ndarray, k_pos: np.ndarray, zeta: np.ndarray, where: np.ndarray) -> None:
+            v, w = columns(k_rot, k_pos, zeta)
+            at: slice | np.ndarray = where  # a slice when it can be: fancy indexing costs more
+            if where[-1] - where[0] == len(where) - 1:
+                at = slice(int(where[0]), int(where[-1]) + 1)
+            jac_v[:, :, at] += v
+            if w is not None:
+                jac_w[:, :, at] += w
+
+        geo = np.flatnonzero(cols < n_geo)
+        if geo.size:
+            twists = self.model.twists(theta[:n_geo])[:, :, cols[geo]]
+            for k in range(twists.shape[0]):
+                acting = np.flatnonzero(np.any(twists[k] != 0.0, axis=0))
+                if acting.size:
+                    add(frames.rotations[k], frames.translations[k], twists[k][:, acting], geo[acting])
+        ext = np.flatnonzero((cols >= n_geo) & (cols < self.n_model))
+        if ext.size and self.extension is not None:
+            k, index = 2 * self.extension.index + 1, self.extension.index
+            axis = self.model.chain(theta[:n_geo]).axes[index]  # in the model's joint frame
+            zeta = axis[:, None] * np.ones(ext.size)
+            # the joint's column, times each pose's regressor: written as a perturbation per column
+            v, w = columns(frames.rotations[k], frames.translations[k], zeta)
+            regressors = self.regressors[:, cols[ext] - n_geo][:, None, :]
+            jac_v[:, :, ext] = v * regressors
+            if w is not None:
+                jac_w[:, :, ext] = w * regressors
+        k = self.n_model
+        if m.n_instrument:  # instrument_T_base · exp(ρ): a perturbation before the chain
+            here = np.flatnonzero((cols >= k) & (cols < k + 6))
+            _, reg, _ = self.split(theta)
+            if here.size:
+                zeta = pin.Jexp6(pin.Motion(theta[k : k + 6]))[:, cols[here] - k]
+                add(reg.rotation, reg.translation, zeta, here)
+            k += 6
+        k += m.n_points  # a point's columns are not the target's: see fixed_points.points_rows
+        here = np.flatnonzero(cols >= k)
+        if here.size and m.n_tool == 3:
+            jac_v[:, :, here] = frames.tip_rotation[:, :, cols[here] - k]
+        elif here.size and m.n_tool == 6:
+            add(rot, pos, pin.Jexp6(pin.Motion(theta[k : k + 6]))[:, cols[here] - k], here)
+        return out
+
+    def rows(self, theta: np.ndarray, cols: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+        """Residuals and, if columns ``cols`` are asked for, their Jacobian (else an empty array)."""
+        if chunked.is_large(self):
+            return chunked.evaluate(self, theta, cols)
+        return self.measurement.measure.rows(self, theta, cols)

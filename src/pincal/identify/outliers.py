@@ -1,0 +1,82 @@
+"""Outlier poses: a pose whose residual is far outside the others' (a lost tracker beam, a
+mistyped row) is flagged by row number and left out of the fit.
+
+The screen refits with a robust loss first (``soft_l1``, whose scale is the residuals' robust
+spread), so one bad pose cannot drag the model towards itself and hide. Each pose then gets a
+score, the size of its residual (the norm of its 3 or 6 residuals, or for distance data the RMS
+of the pairs it belongs to), and a pose is an outlier when its score exceeds
+``median + threshold · 1.4826 · MAD`` of all the scores, that is ``threshold`` robust standard
+deviations above the typical pose. At most :data:`MAX_FRACTION` of the poses are excluded (the
+worst first): beyond that, the residuals are heavy-tailed rather than spoiled by a few poses,
+and the screen leaves them alone.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from pincal.identify.measurements import Problem
+from pincal.options import THRESHOLD
+
+MAX_FRACTION = 0.2  # of the poses, at most
+MIN_POSES = 8  # fewer poses: no screen (too few for a robust spread)
+
+
+def pose_scores(problem: Problem, theta: np.ndarray) -> np.ndarray:
+    """The size of each pose's residual (N,) [m], rotations weighted as in the fit."""
+    res = problem.residuals(theta)
+    n = len(problem.data)
+    if problem.measurement.measure.by_pairs:
+        sq = np.zeros(n)
+        count = np.zeros(n)
+        for col in (0, 1):
+            np.add.at(sq, problem.pairs[:, col], res**2)
+            np.add.at(count, problem.pairs[:, col], 1)
+        return np.sqrt(sq / np.maximum(count, 1))
+    rows = problem.row_poses()
+    mine = rows >= 0
+    return np.sqrt(np.bincount(rows[mine], res[mine] ** 2, minlength=n))
+
+
+def robust_scale(residuals: np.ndarray) -> float:
+    """Robust standard deviation of residual components (1.4826 · median |r|) [m]."""
+    return float(1.4826 * np.median(np.abs(residuals)))
+
+
+def far_off(scores: np.ndarray, threshold: float = THRESHOLD) -> np.ndarray:
+    """Which scores (N,) exceed ``median + threshold · 1.4826 · MAD`` (a mask)."""
+    median = float(np.median(scores))
+    mad = float(np.median(np.abs(scores - median)))
+    return scores > median + threshold * 1.4826 * max(mad, 1e-3 * median, 1e-12)
+
+
+def find_outliers(
+    problem: Problem,
+    theta: np.ndarray,
+    solve: Any,
+    threshold: float = THRESHOLD,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Outlier poses of a fitted problem.
+
+    Args:
+        problem: the residual function on all the poses.
+        theta: the least-squares estimate on all the poses.
+        solve: ``solve(theta, loss, f_scale) -> theta``, the solver the fit used.
+        threshold: robust standard deviations above the median pose score.
+
+    Returns:
+        Indices of the outlier poses (worst first) and every pose's score [m] under the robust fit.
+    """
+    n = len(problem.data)
+    if n < MIN_POSES or threshold <= 0:
+        return np.empty(0, dtype=int), np.zeros(n)
+    f_scale = max(robust_scale(problem.residuals(theta)), 1e-9)  # [m]
+    robust = solve(theta, "soft_l1", f_scale)
+    scores = pose_scores(problem, robust)
+    bad = np.flatnonzero(far_off(scores, threshold))
+    bad = bad[np.argsort(-scores[bad])]
+    if len(bad) > MAX_FRACTION * n:
+        return np.empty(0, dtype=int), scores
+    return bad, scores

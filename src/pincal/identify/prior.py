@@ -1,0 +1,144 @@
+"""The pull toward the URDF, its strength chosen from the data: type-II maximum likelihood.
+
+Each fit holds its geometric corrections ``δ`` (in natural units: metres, or the rotation that
+moves the workspace by 1 m, see :func:`pincal.identify.solver.natural_scale`) near the URDF by rows
+``w · δ`` beside the residuals. Read as a Gaussian model, residuals ``r ~ N(0, σ²)`` and
+corrections ``δ ~ N(0, (σ/w)²)``, the weight ``w`` is the ratio of the noise to the size the
+corrections are expected to have. Where the data pin a direction of the model down, ``w`` hardly
+matters; where they leave it weakly determined (one placement of a socket pair, a few poses), the
+fit in that direction is ``w``'s choice alone, and too weak a pull follows the noise.
+
+:func:`choose_weight` scores each weight of :data:`WEIGHTS` by its evidence (marginal
+likelihood, MacKay 1992), ``σ`` profiled out, and fits the model at the one of largest evidence.
+Linearised at a fit (the default pull's; each weight's fit a Gauss-Newton step from it), with
+``J`` the Jacobian of the residuals in natural units over the ``k`` fitted unknowns
+(``p`` of them pulled), ``n`` residuals and ``S = |r|² + w²|δ|²``::
+
+    log evidence(w) = -(n + p - k)/2 · log S + p · log w - ½ log det(JᵀJ + w² P) + const
+
+(``P`` selects the pulled unknowns; the registration, tool, fixed points and effects have flat
+priors). Noisy data or many weakly determined directions raise the chosen weight; clean, rich
+data lower it. No held-out data is used: the training rows alone decide.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import replace
+
+import numpy as np
+from scipy.optimize import OptimizeResult
+
+from pincal.errors import DataError
+from pincal.identify.chunked import normal_terms
+from pincal.identify.records import PriorChoice
+from pincal.identify.solver import Setup, solve
+
+#: Weights tried [per natural unit]: 1e-3 to 10, four per decade (0.1 m of correction then
+#: weighs as a residual of 0.1 mm to 1 m).
+WEIGHTS = tuple(float(w) for w in np.geomspace(1e-3, 10.0, 17))
+
+
+def parse_prior(prior: float | str) -> float | None:
+    """``"auto"`` -> None (chosen from the data); a number -> that weight (> 0).
+
+    Raises:
+        DataError: neither ``auto`` nor a positive number.
+    """
+    if isinstance(prior, str) and prior == "auto":
+        return None
+    try:
+        weight = float(prior)
+    except (TypeError, ValueError):
+        raise DataError(f"prior={prior!r}: use auto or a weight > 0 (per natural unit)") from None
+    if not np.isfinite(weight) or weight <= 0:
+        raise DataError(f"prior={prior!r}: use auto or a weight > 0 (per natural unit)")
+    return weight
+
+
+def pulled(setup: Setup, free: np.ndarray) -> np.ndarray:
+    """Of the free unknowns (in their order), those the prior pulls: the geometric ones."""
+    return np.arange(int(free.sum())) < int(free[: setup.model.n_params].sum())
+
+
+def log_evidence(setup: Setup, theta: np.ndarray, free: np.ndarray) -> float:
+    """Log evidence of the fit ``theta`` (free unknowns ``free``) at ``setup.prior_weight``,
+    ``σ`` profiled out, up to a constant shared by every weight (see the module's formula)."""
+    problem, weight = setup.problem, setup.prior_weight
+    jac = problem.jacobian(theta, free) * setup.scale[free]
+    res = problem.residuals(theta)
+    pen = pulled(setup, free)
+    geometric = np.flatnonzero(free)[pen]
+    delta = (theta[geometric] - problem.initial_theta()[geometric]) / setup.scale[geometric]
+    total = float(res @ res + weight**2 * delta @ delta)
+    normal = jac.T @ jac + weight**2 * np.diag(pen.astype(float))
+    return _score(len(res), int(pen.sum()), int(free.sum()), total, weight, normal)
+
+
+def choose_weight(
+    setup: Setup, start: np.ndarray, free: np.ndarray, prior: float | str = "auto", loss: str = "linear"
+) -> tuple[PriorChoice, Setup, np.ndarray, OptimizeResult]:
+    """The pull's weight (``prior``: ``auto`` or a weight), the setup carrying it, and the fit.
+
+    Args:
+        setup: the problem.
+        start: the fit at ``setup.prior_weight`` (the default pull): the scan's linearisation
+            point and the start of the fit at the chosen weight.
+        free: mask of the unknowns to fit.
+        prior: ``auto`` (maximum evidence over :data:`WEIGHTS`) or a weight [per natural unit].
+        loss: the fit's loss: the evidence is that of Gaussian residuals, so with a robust loss
+            ``auto`` keeps :data:`pincal.identify.solver.PRIOR_WEIGHT` (said in ``chosen_by``).
+    """
+    given = parse_prior(prior)
+    if given is None and not free[: setup.model.n_params].any():
+        return _fixed(setup, start, free, setup.prior_weight, "nothing pulled")
+    if given is None and loss != "linear":
+        return _fixed(setup, start, free, setup.prior_weight, "default (robust loss: no Gaussian evidence)")
+    if given is not None:
+        return _fixed(setup, start, free, given, "given")
+    scores = evidence_curve(setup, start, free, WEIGHTS)
+    chosen = replace(setup, prior_weight=WEIGHTS[int(np.argmax(scores))])
+    theta, result = solve(chosen, start, free)
+    return PriorChoice(chosen.prior_weight, "evidence", tuple(zip(WEIGHTS, scores))), chosen, theta, result
+
+
+def evidence_curve(
+    setup: Setup, theta: np.ndarray, free: np.ndarray, weights: Sequence[float]
+) -> list[float]:
+    """Log evidence of each weight (as :func:`log_evidence`), linearised at the fit ``theta``:
+    each weight's fit is the Gauss-Newton step from ``theta`` (two solves in all, not one per
+    weight; the corrections are small enough for the residuals to be nearly linear in them)."""
+    problem = setup.problem
+    unscaled, unscaled_grad, rr, n_rows = normal_terms(problem, theta, free)  # by blocks on large data
+    scale = setup.scale[free]
+    gram, grad = unscaled * np.outer(scale, scale), unscaled_grad * scale
+    pen = pulled(setup, free).astype(float)
+    geometric = np.flatnonzero(free)[pen > 0]
+    delta = np.zeros(len(pen))
+    delta[pen > 0] = (theta[geometric] - problem.initial_theta()[geometric]) / setup.scale[geometric]
+    n_pulled = int(pen.sum())
+    out = []
+    for weight in weights:
+        normal = gram + weight**2 * np.diag(pen)
+        step = -np.linalg.lstsq(normal, grad + weight**2 * pen * delta, rcond=None)[0]
+        held = pen * (delta + step)
+        moved = rr + 2.0 * float(step @ grad) + float(step @ gram @ step)  # |r + J step|²
+        total = moved + weight**2 * float(held @ held)
+        out.append(_score(n_rows, n_pulled, len(pen), total, weight, normal))
+    return out
+
+
+def _score(n: int, n_pulled: int, n_free: int, total: float, weight: float, normal: np.ndarray) -> float:
+    """The module's formula: ``n`` residuals, ``n_free`` unknowns of which ``n_pulled`` pulled,
+    ``S = total`` [m²], the weight, and ``JᵀJ + w² P``."""
+    logdet = np.linalg.slogdet(normal)[1]
+    return float(-(n + n_pulled - n_free) / 2 * np.log(total) + n_pulled * np.log(weight) - logdet / 2)
+
+
+def _fixed(
+    setup: Setup, start: np.ndarray, free: np.ndarray, weight: float, how: str
+) -> tuple[PriorChoice, Setup, np.ndarray, OptimizeResult]:
+    """The fit at a weight not chosen by the evidence."""
+    chosen = replace(setup, prior_weight=weight)
+    theta, result = solve(chosen, start, free)
+    return PriorChoice(weight, how), chosen, theta, result

@@ -1,0 +1,148 @@
+"""How a calibration was reached: the records a :class:`~pincal.identify.calibration.Calibration` keeps.
+
+The pull toward the URDF (:mod:`pincal.identify.prior`), the guard's judgement
+(:mod:`pincal.identify.guard`), the
+weights of the delivered fit (:mod:`pincal.auto.balance`) and the choice of parameters and cause
+(:mod:`pincal.auto.choice`) are decided above the calibration in the layers; their records are
+declared here, below it, so that the calibration that keeps them imports nothing above it. The
+choice's record is a protocol: :class:`~pincal.auto.choice.ModelChoice` holds diagnoses and
+cross-validations that hold calibrations in turn (:func:`pincal.auto.choice.choice_of` gives it back
+with its type).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import numpy as np
+
+
+class Choice(Protocol):
+    """What :func:`pincal.auto.choice.choose` decided (a :class:`~pincal.auto.choice.ModelChoice`)."""
+
+    @property
+    def params(self) -> tuple[str, ...] | None:
+        """The chosen model parameters (None: every identifiable one)."""
+
+    def to_dict(self) -> dict[str, Any]:
+        """The report's ``choice`` object."""
+
+
+@dataclass(frozen=True)
+class Balance:
+    """The weight chosen and what each weight's cross-validation gave.
+
+    Attributes:
+        weight: λ (``inf``: geometry first).
+        weights: the λ tried (:data:`pincal.auto.balance.WEIGHTS`).
+        alone_cv_rms_mm: per λ, the URDF alone's linearised cross-validated RMS [mm].
+        full_cv_rms_mm: per λ, the model with its sidecar's [mm].
+    """
+
+    weight: float
+    weights: tuple[float, ...]
+    alone_cv_rms_mm: tuple[float, ...]
+    full_cv_rms_mm: tuple[float, ...]
+
+    def to_dict(self) -> dict[str, object]:
+        """JSON-ready (``inf`` written as None)."""
+        return {
+            "weight": None if np.isinf(self.weight) else self.weight,
+            "weights": [None if np.isinf(w) else w for w in self.weights],
+            "alone_cv_rms_mm": list(self.alone_cv_rms_mm),
+            "full_cv_rms_mm": list(self.full_cv_rms_mm),
+            "by": "K-fold cross-validation, linearised at the joint fit: of the weights whose URDF alone is "
+            "no worse than the geometry alone, the one whose URDF with its sidecar is best",
+        }
+
+
+@dataclass(frozen=True)
+class PriorChoice:
+    """The strength of the pull toward the URDF and how it was chosen.
+
+    Attributes:
+        weight: the weight of the rows ``w · δ`` [per natural unit: 1/m of correction, or per
+            rotation moving the workspace by 1 m].
+        chosen_by: ``evidence`` (type-II maximum likelihood over :data:`WEIGHTS`), ``given``,
+            or why the default was kept (nothing geometric fitted, a robust loss).
+        log_evidence: (weight, log evidence) of each weight tried (empty when given).
+    """
+
+    weight: float
+    chosen_by: str
+    log_evidence: tuple[tuple[float, float], ...] = ()
+
+    def to_dict(self) -> dict[str, Any]:
+        """The report's ``prior`` object."""
+        return {
+            "weight": self.weight,
+            "chosen_by": self.chosen_by,
+            "means": "weight of the rows holding each geometric correction near the URDF, per "
+            "natural unit (0.1 m of correction weighs as a residual of 0.1 m x weight)",
+            "log_evidence": [{"weight": w, "log_evidence": e} for w, e in self.log_evidence],
+        }
+
+    def text(self) -> str:
+        """One line for the summary."""
+        how = "maximum evidence over the fitted poses" if self.chosen_by == "evidence" else self.chosen_by
+        return f"pull toward the URDF: weight {self.weight:.3g} per natural unit ({how})"
+
+
+@dataclass(frozen=True)
+class Guard:
+    """The guard's judgement of a fit against the nominal model, on the fitted poses.
+
+    Attributes:
+        fit_cv_rms_mm: the fit's leave-one-pose-out RMS over poses of the error norm [mm]
+            (all the pose's residual rows: positions, weighted rotations, its pairs' distances).
+        nominal_cv_rms_mm: the nominal model's (registration, tool, points fitted) [mm].
+        z: mean gain in squared validation error over its standard error (large: reliable).
+        z_min: the gain above which it is reliable (:data:`pincal.identify.guard.Z_MIN`).
+        kept_fit: the fit is exported (reliably better, or forced).
+        forced: ``force_fit`` was asked for.
+    """
+
+    fit_cv_rms_mm: float
+    nominal_cv_rms_mm: float
+    z: float
+    z_min: float
+    kept_fit: bool
+    forced: bool = False
+
+    @property
+    def reliable(self) -> bool:
+        """The fit's validation error is reliably below the nominal's."""
+        return self.z > self.z_min
+
+    def text(self) -> str:
+        """The verdict's line."""
+        said = (
+            f"validation (leave-one-pose-out) RMS {self.fit_cv_rms_mm:.3f} mm calibrated, "
+            f"{self.nominal_cv_rms_mm:.3f} mm nominal (gain {self.z:.1f} standard errors)"
+        )
+        if self.reliable:
+            return f"guard: the fit is reliably better than the nominal model: {said}"
+        if self.forced:
+            return (
+                f"guard: the data do not support a calibration better than the nominal model ({said}); "
+                "the fit is exported anyway (--force-fit)"
+            )
+        return (
+            f"guard: the data do not support a calibration better than the nominal model ({said}): "
+            "the nominal geometry is exported, with only the registration and tool fitted "
+            "(--force-fit exports the fit)"
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """The report's ``guard`` object."""
+        return {
+            "fit_cv_rms_mm": self.fit_cv_rms_mm,
+            "nominal_cv_rms_mm": self.nominal_cv_rms_mm,
+            "z": self.z,
+            "z_min": self.z_min,
+            "reliable": self.reliable,
+            "exported": "fit" if self.kept_fit else "nominal",
+            "forced": self.forced,
+            "by": "linearised leave-one-pose-out cross-validation on the fitted poses",
+        }

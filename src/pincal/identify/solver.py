@@ -1,0 +1,350 @@
+"""Identification in named steps: set up, register, choose, solve, screen outliers, assess.
+
+:func:`pincal.calibrate` runs them; every other path calls it or the same steps:
+
+1. :func:`set_up`: the residual function (:class:`~pincal.identify.measurements.Problem`) with a
+   closed-form first guess of the registration and tool, and each unknown's natural size;
+2. :func:`register`: the nominal model with only the registration and tool fitted ("before");
+3. :func:`identifiable_set`: the parameters the data identifies (and those held, with why);
+4. :func:`solve`: Levenberg-Marquardt (or trust-region reflective with a robust loss) on that
+   set, 1 mm and the rotation that moves the workspace by 1 mm weighing the same, each
+   correction held near the URDF (``Setup.prior_weight``, :mod:`pincal.identify.prior`);
+5. :func:`screen_outliers`: poses far outside the others' residuals (see :mod:`pincal.identify.outliers`);
+6. :func:`assess`: standard deviations ``σ² (JᵀJ)⁻¹`` with ``σ²`` from the fit residual, and the
+   errors before and after on the fitted and held-out poses.
+
+``params="auto"`` and ``extension="auto"`` are chosen by :func:`pincal.auto.choice.choose` between
+steps 2 and 4, on the poses being fitted only.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+from scipy.optimize import OptimizeResult, least_squares
+
+from pincal.data.checks import spread
+from pincal.data.dataset import Dataset
+from pincal.errors import DataError, IdentifiabilityError
+from pincal.identify import chunked
+from pincal.identify.calibration import Calibration
+from pincal.identify.evaluation import evaluate
+from pincal.identify.fixed_points import PointDistance, blind_jacobian, gauge_reasons, placed_distances
+from pincal.identify.identifiability import RCOND, Identifiability, analyse, check_rank, parameter_scale
+from pincal.identify.lm import levenberg_marquardt
+from pincal.identify.measurements import ROTATION_WEIGHT, Measurement, Problem, gao_pairs, get_kind
+from pincal.identify.outliers import find_outliers
+from pincal.identify.registration import initial_measurement
+from pincal.kinematics.chain import Chain, forward
+from pincal.kinematics.effects import Extension
+from pincal.kinematics.mdh import make_model
+from pincal.kinematics.models import Model
+from pincal.robot.robots import Robot
+
+#: Keyword arguments of :func:`calibrate` that describe the measurement set-up (see :func:`set_up`).
+SETUP_KEYS = ("instrument_T_base", "tool", "rotation_weight", "pairs", "point_distances")
+
+#: Weight of the rows that hold each geometric correction near the URDF, per natural unit (metres,
+#: or the rotation that moves the workspace by 1 m): 0.1 m of correction weighs as one residual of
+#: 0.15 mm. Where data can hardly tell corrections apart (the last joint's placement against a ball
+#: on its axis), it keeps the fit from wandering decimetres and radians away for micrometres.
+PRIOR_WEIGHT = 1.5e-3
+
+
+@dataclass(frozen=True, eq=False)
+class Setup:
+    """A calibration problem before anything is fitted.
+
+    Attributes:
+        problem: the residual function (model, measurement model with its first-guess
+            registration and tool, data, extension).
+        scale: natural size of each unknown (1 for metres, 1/length for radians, an effect's
+            size that moves the tip by 1 mm at the workspace's length).
+        tool: the tool as given (the tip frame's origin when unknown): the "URDF as is" tool.
+        prior_weight: the pull toward the URDF (:data:`PRIOR_WEIGHT`, or :mod:`pincal.identify.prior`'s).
+    """
+
+    problem: Problem
+    scale: np.ndarray
+    tool: pin.SE3
+    prior_weight: float = PRIOR_WEIGHT
+    _last: dict[str, Any] = field(default_factory=dict, init=False, repr=False)
+
+    def linearised(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Residuals and Jacobian at ``theta``; the last pair is kept, as the registration-only
+        point is asked for by the rank check, the selection and the fit in turn."""
+        key = theta.tobytes()
+        if self._last.get("key") != key:
+            self._last.update(key=key, value=(self.problem.residuals(theta), self.problem.jacobian(theta)))
+        return self._last["value"]
+
+    @property
+    def model(self) -> Model:
+        """The parameterization."""
+        return self.problem.model
+
+    @property
+    def data(self) -> Dataset:
+        """The fitted poses."""
+        return self.problem.data
+
+
+def workspace_length(data: Dataset, robot: Robot | None = None) -> float:
+    """RMS distance of the measured points from their centroid [m] (at least 5 cm); for
+    fixed-point data, whose points are few, the RMS distance of the nominal tip from the base."""
+    if data.labels is not None and robot is not None:
+        tips = forward(Chain.nominal(robot), data.q).tip_translation
+        return max(0.05, float(np.sqrt(np.mean(np.sum(tips**2, axis=1)))))
+    return max(0.05, spread(data.points))
+
+
+def _pairs(pairs: str | np.ndarray, n: int) -> np.ndarray | None:
+    if not isinstance(pairs, str):
+        return np.asarray(pairs, dtype=int)
+    if pairs not in ("all", "gao"):
+        raise DataError(f"unknown pairing {pairs!r}: use all or gao")
+    return gao_pairs(n) if pairs == "gao" else None
+
+
+def set_up(
+    robot: Robot,
+    data: Dataset,
+    model: str | Model = "placements",
+    measure: str | None = None,
+    *,
+    instrument_T_base: pin.SE3 | None = None,
+    tool: pin.SE3 | np.ndarray | None = None,
+    rotation_weight: float = ROTATION_WEIGHT,
+    pairs: str | np.ndarray = "all",
+    point_distances: tuple[PointDistance, ...] = (),
+    extension: Extension | None = None,
+) -> Setup:
+    """The problem to solve, with a closed-form first guess of the registration and tool.
+
+    Arguments as :func:`calibrate`.
+    """
+    if len(data) < 2:
+        raise IdentifiabilityError(f"{len(data)} pose(s) to fit: a calibration needs many varied poses")
+    if tuple(data.joint_names) != robot.joint_names:
+        raise DataError(f"the data's joints {data.joint_names} are not the chain's {robot.joint_names}")
+    mdl = make_model(model, robot) if isinstance(model, str) else model
+    tool_se3 = (
+        tool
+        if isinstance(tool, pin.SE3)
+        else pin.SE3(np.eye(3), np.zeros(3) if tool is None else np.asarray(tool, float))
+    )
+    kind = measure or data.measured
+    if get_kind(kind).fixed_points and data.labels is None:
+        raise DataError("--measure points needs a point column naming the fixed point of each row")
+    if point_distances and not get_kind(kind).fixed_points:
+        raise DataError(f"--point-distance is for --measure points (fixed-point data), not for {kind} data")
+    if not (isinstance(pairs, str) and pairs == "all") and not get_kind(kind).by_pairs:
+        named = pairs if isinstance(pairs, str) else "(an array)"
+        raise DataError(f"--pairs {named} is for --measure distance, not for {kind} data")
+    measurement = Measurement(
+        kind=kind,
+        instrument_T_base=instrument_T_base or pin.SE3.Identity(),
+        fit_instrument=instrument_T_base is None,
+        tool=tool_se3,
+        fit_tool=tool is None,
+        rotation_weight=rotation_weight,
+        pairs=_pairs(pairs, len(data)),
+        points=data.point_names if get_kind(kind).fixed_points else (),
+        point_distances=placed_distances(data.point_names, tuple(point_distances)),
+    )
+    problem = Problem(mdl, initial_measurement(robot, data, measurement), data, extension)
+    return Setup(problem, natural_scale(problem), tool_se3)
+
+
+def natural_scale(problem: Problem) -> np.ndarray:
+    """Natural size of each unknown of a problem (see :class:`Setup`)."""
+    robot, data, extension = problem.model.robot, problem.data, problem.extension
+    length = workspace_length(data, robot)
+    scale = parameter_scale(problem.units, length)
+    if extension is not None:  # natural size of an effect: moving the joint by 1 mm at the lever arm
+        rms = np.sqrt(np.mean(problem.regressors**2, axis=0))
+        lever = 1.0 if robot.prismatic[extension.index] else length
+        scale[problem.model.n_params : problem.n_model] = 1.0 / (lever * np.where(rms > 0, rms, 1.0))
+    return scale
+
+
+def solve(
+    setup: Setup, theta: np.ndarray, free: np.ndarray, loss: str = "linear", f_scale: float = 1e-4
+) -> tuple[np.ndarray, OptimizeResult]:
+    """Least squares over the unknowns ``free`` (mask) from ``theta``, held by ``setup.prior_weight`` rows.
+
+    Args:
+        setup: the problem.
+        theta: the start; the unknowns not free keep their value.
+        free: (P,) mask of the unknowns to fit.
+        loss: ``linear`` or a robust loss of ``scipy.optimize.least_squares``.
+        f_scale: residual size where a robust loss starts to down-weight [m].
+    """
+    problem = setup.problem
+    nominal = problem.initial_theta()
+    geometric = np.flatnonzero(free[: problem.model.n_params])  # the first free unknowns
+    prior = setup.prior_weight / setup.scale[geometric]  # [1 or m/rad]
+
+    def full(sub: np.ndarray) -> np.ndarray:
+        out = theta.copy()
+        out[free] = sub
+        return out
+
+    def residuals(sub: np.ndarray) -> np.ndarray:
+        held = prior * (sub[: len(geometric)] - nominal[geometric])
+        return np.concatenate([problem.residuals(full(sub)), held])
+
+    def jacobian(sub: np.ndarray) -> np.ndarray:
+        held = np.eye(len(geometric), len(sub)) * prior[:, None]
+        return np.vstack([problem.jacobian(full(sub), free), held])
+
+    x_scale = setup.scale[free] * 1e-3
+    if loss == "linear" and len(problem.residuals(theta)) >= free.sum():
+        big = chunked.lm_triangle(problem, full, free, x_scale, (prior, nominal[geometric]))  # issue 33
+        result = levenberg_marquardt(residuals, jacobian, theta[free], x_scale, max_nfev=200, triangle=big)
+    else:
+        tight = dict.fromkeys(("xtol", "ftol", "gtol"), 1e-12)
+        options = dict(loss=loss, f_scale=f_scale, x_scale=x_scale, max_nfev=200, **tight)
+        result = least_squares(residuals, theta[free], jac=jacobian, method="trf", **options)
+    return full(result.x), result
+
+
+def register(setup: Setup, with_extension: bool = False) -> np.ndarray:
+    """θ of the nominal model with only the registration and tool fitted (and the extension,
+    when ``with_extension``): the "before" of a report and the start of every fit."""
+    problem = setup.problem
+    theta = problem.initial_theta()
+    first = problem.model.n_params if with_extension else problem.n_model
+    free = np.arange(problem.n_params) >= first
+    if free.any():
+        theta, _ = solve(setup, theta, free)
+    return theta
+
+
+def identifiable_set(
+    setup: Setup,
+    theta: np.ndarray,
+    params: Sequence[str] | None = None,
+    partial: bool = False,
+    rcond: float = RCOND,
+) -> Identifiability:
+    """The unknowns to fit: the chosen model parameters (default: all) that the data identifies,
+    with the extension, registration and tool.
+
+    Raises:
+        DataError: unknown parameter names.
+        IdentifiabilityError: the data cannot identify what varied poses would (unless
+            ``partial``), or gives fewer equations than unknowns.
+    """
+    setup = chunked.sampled(setup)  # issue 33: many poses, a random subset of them (pincal.identify.chunked)
+    problem, mdl = setup.problem, setup.model
+    held = dict(mdl.held)
+    if params is not None:
+        unknown = sorted(set(params) - set(mdl.names))
+        if unknown:
+            raise DataError(
+                f"unknown parameters {', '.join(unknown)}: "
+                f"the {mdl.kind} model's are named like {', '.join(mdl.names[:3])}"
+            )
+        chosen = set(params)
+        held.update({name: "not selected" for name in mdl.names if name not in chosen and name not in held})
+    candidates = np.array([name not in held for name in problem.names])
+    n_model = problem.n_model
+    preference = np.ones(problem.n_params)
+    preference[:n_model] = 1.0 + 0.05 * np.linspace(0.0, 1.0, n_model)
+    preference[n_model:] = 2.0
+    jacobian = setup.linearised(theta)[1]
+    jacobian, gauges, blind = blind_jacobian(problem, theta, jacobian, candidates, setup.scale)
+    ident = analyse(jacobian, problem.names, setup.scale, candidates, preference, held, rcond)
+    if blind:
+        why = gauge_reasons(problem.names, candidates & ~ident.identifiable, gauges, blind, setup.scale)
+        ident = replace(ident, reasons={**ident.reasons, **why}, gauges=blind)
+    n_res, n_poses = len(jacobian), len(setup.data)
+    n_needed = ident.n_identifiable
+    if not partial and not problem.measurement.measure.fixed_points:  # its rank is the gauges'
+        n_needed = check_rank(problem, theta, jacobian, setup.scale, candidates, rcond)
+    if n_res <= n_needed:
+        per_pose = max(1, n_res // max(1, n_poses))
+        least = n_needed // per_pose + 2
+        said = f"{n_poses} poses give {n_res} equations for {n_needed} identifiable parameters"
+        raise IdentifiabilityError(f"{said}: measure at least {least} poses", least)
+    return ident
+
+
+def screen_outliers(
+    setup: Setup, theta: np.ndarray, free: np.ndarray, threshold: float, f_scale: float = 1e-4
+) -> tuple[np.ndarray, np.ndarray]:
+    """Outlier poses of a fit (indices, worst first) and every pose's score [m]."""
+
+    def robust(start: np.ndarray, how: str, size: float) -> np.ndarray:
+        return solve(chunked.sampled(setup), start, free, how, size)[0]  # issue 33: many poses, a subset
+
+    return find_outliers(setup.problem, theta, robust, threshold)
+
+
+def assess(
+    setup: Setup,
+    theta: np.ndarray,
+    nominal_theta: np.ndarray,
+    ident: Identifiability,
+    result: OptimizeResult,
+    test: Dataset | None = None,
+) -> Calibration:
+    """The calibration record: standard deviations and the errors before and after.
+
+    Args:
+        setup: the problem.
+        theta: the fit.
+        nominal_theta: the registration-only fit ("before").
+        ident: the identifiable set the fit used.
+        result: the solver's result (evaluations, message).
+        test: held-out poses, if any.
+    """
+    problem, mdl, ext, data = setup.problem, setup.model, setup.problem.extension, setup.data
+    n_model, measurement = problem.n_model, problem.measurement
+    # The URDF as it is: nominal tool, only the registration fitted.
+    urdf_meas = replace(measurement, tool=setup.tool, fit_tool=False)
+    urdf_problem = Problem(mdl, urdf_meas, data, ext)
+    urdf_theta = urdf_problem.initial_theta()
+    if urdf_meas.n_instrument:
+        urdf_theta[n_model:] = theta[n_model : n_model + 6]
+        urdf_setup = Setup(urdf_problem, setup.scale[: urdf_problem.n_params], setup.tool)
+        urdf_theta, _ = solve(urdf_setup, urdf_theta, np.arange(urdf_problem.n_params) >= n_model)
+
+    std = np.zeros(problem.n_params)
+    free = ident.identifiable
+    gram = chunked.gram(problem, theta, free) * np.outer(setup.scale[free], setup.scale[free])  # issue 33
+    res = problem.residuals(theta)
+    sigma2 = float(res @ res) / (len(res) - int(free.sum()))
+    std[free] = np.sqrt(np.clip(np.diag(np.linalg.pinv(gram) * sigma2), 0.0, None)) * setup.scale[free]
+
+    def stats(meas: Measurement, th: np.ndarray, on: Dataset | None) -> Any:
+        return None if on is None else evaluate(mdl, meas, th, on, ext)
+
+    held_out = replace(measurement, pairs=None)
+    return Calibration(
+        model=mdl,
+        extension=ext,
+        measurement=measurement,
+        names=problem.names,
+        units=problem.units,
+        theta=theta,
+        std=std,
+        nominal_theta=nominal_theta,
+        identifiability=ident,
+        train_before=stats(measurement, nominal_theta, data),
+        train_after=stats(measurement, theta, data),
+        test_before=stats(held_out, nominal_theta, test),
+        test_after=stats(held_out, theta, test),
+        train_urdf=stats(urdf_meas, urdf_theta, data),
+        test_urdf=stats(replace(urdf_meas, pairs=None), urdf_theta, test),
+        urdf_measurement=urdf_meas,
+        urdf_theta=urdf_theta,
+        n_poses=len(data),
+        n_evaluations=int(result.njev or result.nfev),
+        message=str(result.message),
+    )

@@ -1,0 +1,3 @@
+"""Kinematics and the error models: the chain, joint twists, placements, POE, modified DH,
+non-geometric effects.
+"""

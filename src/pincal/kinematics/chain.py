@@ -1,0 +1,250 @@
+"""Chain kinematics vectorised over poses, and the one Jacobian mechanism every model shares.
+
+Every parameterization writes the robot as a serial chain
+
+    base_T_tip(q) = C_0 · exp(S_1 q_1) · C_1 · exp(S_2 q_2) · ... · exp(S_n q_n) · C_n
+
+with constant placements ``C_k`` (functions of the model's parameters) and local unit joint
+twists ``S_j``. The chain has ``2n + 1`` *positions*: position ``2k`` is the frame after ``C_k``,
+position ``2j - 1`` the frame after joint ``j``'s motion. A parameter acts on the chain as a
+right-perturbation ``exp(ζ ε)`` at one or more positions, with a local twist ``ζ``; its effect on
+the tip is then ``Ad(base_T_position) ζ``. A joint's own column is the same thing with ``ζ = S_j``
+at position ``2j - 1``, which is what :func:`joint_jacobian` uses and what the tests compare to
+Pinocchio's frame Jacobian.
+
+Arrays are batched over poses: rotations ``(N, 3, 3)``, translations ``(N, 3)`` [m]. Twists and
+Jacobian rows are in Pinocchio's order (v, ω). Tip Jacobians are LOCAL_WORLD_ALIGNED: the velocity
+[m/unit] of the tip origin and the angular velocity [rad/unit], both in base axes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from pincal.robot.robots import Robot
+
+
+@dataclass(frozen=True)
+class Chain:
+    """A chain's constant placements and joint twists.
+
+    Attributes:
+        placements: ``C_0 ... C_n`` as SE3.
+        axes: joint twists ``S_j`` (n, 6) in the frame after ``C_{j-1}``, order (v, ω).
+    """
+
+    placements: tuple[pin.SE3, ...]
+    axes: np.ndarray
+
+    @classmethod
+    def nominal(cls, robot: Robot) -> Chain:
+        """The chain of the robot's URDF joint origins and tip placement."""
+        return cls(robot.placements, robot.axes)
+
+
+@dataclass(frozen=True)
+class Frames:
+    """World frames of every chain position, for a batch of poses.
+
+    Attributes:
+        rotations: (2n + 1, N, 3, 3) ``base_R_position``.
+        translations: (2n + 1, N, 3) ``base_p_position`` [m].
+    """
+
+    rotations: np.ndarray
+    translations: np.ndarray
+
+    @property
+    def tip_rotation(self) -> np.ndarray:
+        """``base_R_tip`` (N, 3, 3)."""
+        return self.rotations[-1]
+
+    @property
+    def tip_translation(self) -> np.ndarray:
+        """``base_p_tip`` (N, 3) [m]."""
+        return self.translations[-1]
+
+
+def skew(v: np.ndarray) -> np.ndarray:
+    """Skew-symmetric matrices of vectors (..., 3) -> (..., 3, 3)."""
+    out = np.zeros((*v.shape[:-1], 3, 3))
+    out[..., 0, 1], out[..., 0, 2] = -v[..., 2], v[..., 1]
+    out[..., 1, 0], out[..., 1, 2] = v[..., 2], -v[..., 0]
+    out[..., 2, 0], out[..., 2, 1] = -v[..., 1], v[..., 0]
+    return out
+
+
+def stacked_dot(rot: np.ndarray, mat: np.ndarray) -> np.ndarray:
+    """``rot @ mat`` for stacked matrices (N, 3, k) and one matrix (k, m): a single BLAS call."""
+    return (rot.reshape(-1, rot.shape[2]) @ mat).reshape(rot.shape[0], 3, mat.shape[1])
+
+
+def axis_rotations(axis: np.ndarray, angles: np.ndarray) -> np.ndarray:
+    """Rotations about a unit axis (3,) by angles (N,) [rad], Rodrigues' formula -> (N, 3, 3)."""
+    k = skew(np.asarray(axis, dtype=float))
+    s, c = np.sin(angles)[:, None, None], np.cos(angles)[:, None, None]
+    return np.eye(3) + s * k + (1.0 - c) * (k @ k)
+
+
+def forward(chain: Chain, q: np.ndarray) -> Frames:
+    """World frames of all chain positions for joint values ``q`` (N, n) [rad or m]."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    n_poses, n = q.shape
+    rotations = np.empty((2 * n + 1, n_poses, 3, 3))
+    translations = np.empty((2 * n + 1, n_poses, 3))
+    rotations[0], translations[0] = chain.placements[0].rotation, chain.placements[0].translation
+    rot, pos = rotations[0], translations[0]
+    for j in range(n):
+        v, w = chain.axes[j, :3], chain.axes[j, 3:]
+        if np.any(w):  # revolute joint through the frame origin: R · (I + s K + (1 - c) K²)
+            k = skew(w)
+            rot_k = stacked_dot(rot, k)
+            s, c = np.sin(q[:, j])[:, None, None], np.cos(q[:, j])[:, None, None]
+            rot = rot + s * rot_k + (1.0 - c) * stacked_dot(rot_k.reshape(-1, 3, 3), k)
+        else:  # prismatic
+            pos = pos + stacked_dot(rot, v[:, None])[:, :, 0] * q[:, j, None]
+        rotations[2 * j + 1], translations[2 * j + 1] = rot, pos
+        c_next = chain.placements[j + 1]
+        pos = pos + stacked_dot(rot, c_next.translation[:, None])[:, :, 0]
+        rot = stacked_dot(rot, c_next.rotation)
+        rotations[2 * j + 2], translations[2 * j + 2] = rot, pos
+    return Frames(rotations, translations)
+
+
+def twist_columns(
+    rot: np.ndarray, pos: np.ndarray, zeta: np.ndarray, point: np.ndarray, rotation: bool = True
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """Effect of right-perturbations ``exp(ζ ε)`` of frames on a point attached beyond them.
+
+    Args:
+        rot, pos: the perturbed frames, ``R`` (N, 3, 3) and ``p`` (N, 3) [m], or one frame.
+        zeta: local twists (6, m), order (v, ω).
+        point: the moved point (N, 3) [m], in the same axes as ``p``.
+        rotation: whether to return the angular velocity too.
+
+    Returns:
+        The point's velocity ``R ζ_v + (R ζ_ω) × (point - p)`` (N, 3, m) [m/unit] and the
+        angular velocity ``R ζ_ω`` (N, 3, m) [rad/unit] (None unless ``rotation``).
+    """
+    rot = np.ascontiguousarray(np.broadcast_to(rot, (len(point), 3, 3)))
+    arm = skew(point - pos) @ rot  # [lever]× R: v = R ζ_v - lever × (R ζ_ω)
+    v = stacked_dot(np.concatenate([rot, -arm], axis=2), zeta)
+    return v, stacked_dot(rot, zeta[3:]) if rotation else None
+
+
+def tip_jacobian(frames: Frames, twists: np.ndarray, point: np.ndarray | None = None) -> np.ndarray:
+    """Tip Jacobian of right-perturbations given at chain positions.
+
+    Args:
+        frames: output of :func:`forward`.
+        twists: (2n + 1, 6, p) local twist of each of ``p`` parameters at each position
+            (zero where a parameter does not act).
+        point: the point whose velocity the rows give (N, 3) [m] (default: the tip's origin).
+
+    Returns:
+        (N, 6, p) LOCAL_WORLD_ALIGNED Jacobian of the tip: rows (v [m/unit], ω [rad/unit]).
+    """
+    point = frames.tip_translation if point is None else point
+    jac = np.zeros((len(point), 6, twists.shape[2]))
+    for k in range(twists.shape[0]):
+        cols = np.flatnonzero(np.any(twists[k] != 0.0, axis=0))
+        if cols.size == 0:
+            continue
+        v, w = twist_columns(frames.rotations[k], frames.translations[k], twists[k][:, cols], point)
+        jac[:, :3, cols] += v
+        jac[:, 3:, cols] += w  # type: ignore[arg-type]
+    return jac
+
+
+def joint_jacobian(chain: Chain, frames: Frames) -> np.ndarray:
+    """Tip Jacobian with respect to the joint values (N, 6, n), LOCAL_WORLD_ALIGNED.
+
+    Joint ``j`` is a right-perturbation by ``S_j`` at position ``2j - 1``: the same mechanism as
+    every parameter, so comparing this with :meth:`Robot.frame_jacobian` checks it.
+    """
+    n = chain.axes.shape[0]
+    twists = np.zeros((2 * n + 1, 6, n))
+    for j in range(n):
+        twists[2 * j + 1, :, j] = chain.axes[j]
+    return tip_jacobian(frames, twists)
+
+
+def right_twists(
+    factors: list[pin.SE3], local: list[tuple[int, int, np.ndarray]], n_params: int
+) -> np.ndarray:
+    """Right-perturbation twists of a product of factors ``C = F_0 · F_1 · ... · F_m``.
+
+    Args:
+        factors: the factors ``F_i``.
+        local: entries ``(parameter, i, ζ)``: the parameter perturbs ``F_i`` on its right by the
+            local twist ``ζ`` (6,).
+        n_params: number of parameter columns.
+
+    Returns:
+        (6, n_params) twists of the same perturbations on the right of the whole product ``C``:
+        ``Ad(suffix⁻¹) ζ``, with ``suffix = F_{i+1} · ... · F_m``.
+    """
+    out = np.zeros((6, n_params))
+    suffixes = [pin.SE3.Identity()] * len(factors)
+    acc = pin.SE3.Identity()
+    for i in range(len(factors) - 1, -1, -1):
+        suffixes[i] = acc
+        acc = factors[i] * acc
+    for param, i, zeta in local:
+        out[:, param] += suffixes[i].actInv(pin.Motion(zeta)).vector
+    return out
+
+
+def log3(rot: np.ndarray) -> np.ndarray:
+    """``pin.log3`` of stacked rotations (N, 3, 3) -> rotation vectors (N, 3) [rad]."""
+    cos = np.clip((np.trace(rot, axis1=1, axis2=2) - 1.0) / 2.0, -1.0, 1.0)
+    angle = np.arccos(cos)
+    vee = np.stack([rot[:, 2, 1] - rot[:, 1, 2], rot[:, 0, 2] - rot[:, 2, 0], rot[:, 1, 0] - rot[:, 0, 1]], 1)
+    small = angle < 1e-4  # θ / (2 sin θ) by its series
+    factor = np.where(small, 0.5 + angle**2 / 12.0, angle / (2.0 * np.sin(np.where(small, 1.0, angle))))
+    out = factor[:, None] * vee
+    for p in np.flatnonzero(angle > np.pi - 1e-2):  # near a half turn, R - Rᵀ says too little
+        out[p] = pin.log3(rot[p])
+    return out
+
+
+def jlog3(rot: np.ndarray, log: np.ndarray | None = None) -> np.ndarray:
+    """``pin.Jlog3`` of stacked rotations (N, 3, 3) -> (N, 3, 3), given or computing their logs."""
+    log = log3(rot) if log is None else log
+    angle = np.linalg.norm(log, axis=1)
+    small = angle < 1e-2  # the closed form cancels below; the series' next term is θ⁴/30240
+    safe = np.where(small, 1.0, angle)
+    closed = 1.0 / safe**2 - (1.0 + np.cos(safe)) / (2.0 * safe * np.sin(safe))
+    coef = np.where(small, 1.0 / 12.0 + angle**2 / 720.0, closed)
+    k = skew(log)
+    return np.eye(3) + 0.5 * k + coef[:, None, None] * (k @ k)
+
+
+def rigid_transform(matrix: object, what: str, tol: float = 1e-6) -> pin.SE3:
+    """A 4×4 homogeneous matrix as an SE3, refused unless finite and rigid.
+
+    Args:
+        matrix: nested lists or an array (4, 4): rotation and translation [m], last row 0 0 0 1.
+        what: how to name the matrix in the message.
+        tol: largest error of ``RᵀR = I``, ``det R = 1`` and the last row.
+
+    Raises:
+        ValueError: not 4×4 numbers, not finite, a translation of 1e6 m or more (which overflows
+            the kinematics), or not a rotation and translation.
+    """
+    m = np.array(matrix, dtype=float)
+    if m.shape != (4, 4) or not np.all(np.isfinite(m)):
+        raise ValueError(f"{what}: not a 4x4 matrix of finite numbers")
+    if np.abs(m[:3, 3]).max() >= 1e6:
+        raise ValueError(f"{what}: a translation of 1e6 m or more")
+    rot = m[:3, :3]
+    if (
+        np.abs(rot.T @ rot - np.eye(3)).max() > tol
+        or abs(np.linalg.det(rot) - 1.0) > tol
+        or np.abs(m[3] - [0.0, 0.0, 0.0, 1.0]).max() > tol
+    ):
+        raise ValueError(f"{what}: the matrix is not a rotation and a translation")
+    return pin.SE3(m)

@@ -1,0 +1,1 @@
+"""Measurement poses chosen for the calibrated robot's accuracy."""

@@ -1,0 +1,247 @@
+"""The calibration report: the JSON of ``contracts.md`` and a table a person reads.
+
+Parameter values are written in mm and mrad. Model parameters are corrections to the nominal
+geometry; ``instrument.*`` is the identified ``instrument_T_base`` (translation [mm] and
+rotation vector [mrad]) and ``tool.*`` the measured point or frame on the tip, both absolute.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from pincal.data.dataset import Dataset
+from pincal.identify.calibration import Calibration
+from pincal.identify.evaluation import (
+    ErrorStats,
+    Misplaced,
+    PlacementErrors,
+    misplaced_rows,
+    placement_errors,
+)
+from pincal.json_text import json_text
+from pincal.kinematics.effects import compliance_stiffness
+from pincal.kinematics.models import PoeModel
+from pincal.report.outcome import Outcome
+
+_TO_DISPLAY = {"m": (1e3, "mm"), "rad": (1e3, "mrad")}
+
+
+def parameter_rows(cal: Calibration) -> list[dict[str, Any]]:
+    """One row per unknown: name, value, std, unit, identifiable and, if held, why."""
+    _, reg, tool = cal.split()
+    absolute: dict[str, float] = {}
+    for prefix, se3 in (("instrument", reg), ("tool", tool)):
+        rotvec = pin.log3(se3.rotation)
+        for k, axis in enumerate("xyz"):
+            absolute[f"{prefix}.t{axis}"] = float(se3.translation[k])
+            absolute[f"{prefix}.r{axis}"] = float(rotvec[k])
+            absolute[f"{prefix}.{axis}"] = float(se3.translation[k])
+    rows = []
+    reasons = cal.identifiability.reasons
+    for i, (name, unit) in enumerate(zip(cal.names, cal.units)):
+        factor, shown = _TO_DISPLAY.get(unit, (1.0, unit))
+        value = absolute.get(name, float(cal.theta[i]))
+        row: dict[str, Any] = {
+            "name": name,
+            "value": value * factor,
+            "std": float(cal.std[i]) * factor,
+            "unit": shown,
+            "identifiable": bool(cal.identifiability.identifiable[i]),
+        }
+        if name in reasons:
+            row["reason"] = reasons[name]
+        rows.append(row)
+    return rows
+
+
+def extension_dict(cal: Calibration, data: Dataset | None = None) -> dict[str, Any] | None:
+    """The extension identified with the geometry: its label, parameters and, for a joint
+    compliance with the fitted poses ``data`` given, the stiffness it implies."""
+    ext = cal.extension
+    if ext is None:
+        return None
+    out: dict[str, Any] = {
+        "effect": ext.effect,
+        "joint": ext.joint,
+        "label": ext.label,
+        "parameters": {
+            n: {"value": float(v), "unit": u} for n, v, u in zip(ext.names, cal.effect_params, ext.units)
+        },
+    }
+    if ext.effect == "joint_compliance" and data is not None:
+        out["stiffness"] = compliance_stiffness(ext, float(cal.effect_params[0]), data.q).to_dict()
+    return out
+
+
+def report_dict(
+    cal: Calibration, data: Dataset | None = None, test: Dataset | None = None, outcome: Outcome | None = None
+) -> dict[str, Any]:
+    """The report of ``contracts.md`` (and more); ``data``, ``test``: the fitted and held-out
+    poses, for the stiffness a compliance implies and the warnings; ``outcome``: the exported
+    files' errors and the residual verdict (:func:`pincal.report.outcome.outcome`)."""
+    exported = outcome.exported if outcome is not None else None
+
+    def pair(
+        before: ErrorStats | None, after: ErrorStats | None, urdf: ErrorStats | None, alone: ErrorStats | None
+    ) -> Any:
+        if before is None or after is None:
+            return None
+        out = {"before": before.to_dict(), "after": after.to_dict()}
+        if urdf is not None:
+            out["urdf"] = urdf.to_dict()
+        if alone is not None:
+            out["exported"] = alone.to_dict()
+        return out
+
+    ident, found = cal.identifiability, findings(cal, data)
+    extra: dict[str, Any] = {}
+    if isinstance(cal.model, PoeModel):
+        _, _, tool = cal.split()
+        rot, pos = cal.base_T_tip(np.zeros(cal.robot.n_joints))
+        home = pin.SE3(rot[0], pos[0])
+        extra["twists"] = [
+            {"joint": j, "omega": [float(v) for v in xi[3:]], "v_mm": [float(v) * 1e3 for v in xi[:3]]}
+            for j, xi in zip(cal.robot.joint_names, cal.model.joint_twists(cal.x))
+        ]
+        extra["p_E0_mm"] = [float(v) * 1e3 for v in home.act(tool.translation)]
+    return {
+        "robot": cal.robot.name,
+        "tip": cal.robot.tip,
+        "joints": list(cal.robot.joint_names),
+        "model": cal.model.kind,
+        "measure": cal.measurement.kind,
+        "n_poses": cal.n_poses,
+        "n_params": len(cal.names),
+        "n_identifiable": ident.n_identifiable,
+        "condition_number": ident.condition_number,
+        "singular_values": [float(s) for s in ident.singular_values],
+        "held": dict(sorted(ident.reasons.items())),
+        "not_identifiable": list(ident.gauges),
+        "rotation_weight_m_per_rad": cal.measurement.rotation_weight
+        if cal.measurement.measure.orientation
+        else None,
+        "before_means": "nominal kinematics with the instrument registration and tool fitted",
+        "urdf_means": "the URDF as it is: nominal tool, only the instrument registration fitted",
+        "exported_means": "the written URDF alone, with the sidecar's registration and tool (as a URDF "
+        "consumer loads it); after: the URDF with the whole sidecar",
+        "train": pair(
+            cal.train_before, cal.train_after, cal.train_urdf, exported.train if exported else None
+        ),
+        "test": pair(cal.test_before, cal.test_after, cal.test_urdf, exported.test if exported else None),
+        "residual": None if outcome is None else outcome.residual.to_dict(),
+        "balance": None if cal.balance is None else cal.balance.to_dict(),
+        "solver": {"jacobian_evaluations": cal.n_evaluations, "message": cal.message},
+        "excluded_poses": [{"row": row, "residual_mm": size} for row, size in cal.excluded],
+        "parameters": parameter_rows(cal),
+        "placements": [p.to_dict() for p in found[0]],
+        "warnings": report_warnings(cal, data, test, found),
+        "choice": None if cal.choice is None else cal.choice.to_dict(),
+        "prior": None if cal.prior is None else cal.prior.to_dict(),
+        "guard": None if cal.guard is None else cal.guard.to_dict(),
+        "extension": extension_dict(cal, data),
+        **extra,
+    }
+
+
+def report_json(
+    cal: Calibration,
+    data: Dataset | None = None,
+    test: Dataset | None = None,
+    outcome: Outcome | None = None,
+    **extra: Any,
+) -> str:
+    """The report as JSON text (no NaN or infinity: those become null), with ``extra`` keys."""
+
+    return json_text({**report_dict(cal, data, test, outcome), **extra})
+
+
+#: What the report says of fitted fixed-point data: each placement's errors, the misplaced rows.
+Findings = tuple[list[PlacementErrors], list[Misplaced]]
+
+
+def findings(cal: Calibration, data: Dataset | None) -> Findings:
+    """Each placement's errors and the misplaced rows of the fitted ``data``, found once."""
+    if data is None:
+        return [], []
+    found = misplaced_rows(cal.model, cal.measurement, cal.theta, data, cal.extension)
+    left_out, misplaced = tuple(row for row, _ in cal.excluded), tuple(m.row for m in found)
+    each = placement_errors(cal.model, cal.measurement, cal.theta, data, cal.extension, left_out, misplaced)
+    return each, found
+
+
+def placements(cal: Calibration, data: Dataset | None) -> list[PlacementErrors]:
+    """Each placement's errors after calibration, for fixed-point data of several placements
+    (``data``: the fitted data); else an empty list."""
+    return findings(cal, data)[0]
+
+
+#: A held-out error this many times the nominal kinematics' is "worse" (not a tie to rounding).
+WORSE = 1.01
+
+
+def report_warnings(
+    cal: Calibration, data: Dataset | None = None, test: Dataset | None = None, found: Findings | None = None
+) -> list[str]:
+    """What the user should know before trusting the result: held-out poses predicted worse
+    than by the nominal kinematics, placements whose rows disagree with themselves, fixed-point
+    rows (fitted ``data`` or held-out ``test``) that sit at another point than their own,
+    held-out points that hold no known distance (its error is not judged);
+    ``found``: :func:`findings` of ``data`` when already computed."""
+    each, misplaced = findings(cal, data) if found is None else found
+    out = []
+    if cal.test_after is not None and cal.test_before is not None:
+        after, before = cal.test_after.headline_mm, cal.test_before.headline_mm
+        if after > before * WORSE:
+            out.append(
+                f"the calibrated model predicts the held-out poses worse than the nominal kinematics "
+                f"({after:.3f} against {before:.3f} mm): what the fitted poses determine does not carry "
+                "over to them; fit poses that cover where the robot works (sockets: several placements "
+                "at once), or keep the URDF"
+            )
+    for p in each:
+        if p.suspect:
+            mae = float(p.after.point_mae_mm or 0.0)
+            out.append(
+                f"placement {p.name}: its rows scatter {mae:.3f} mm from their points after calibration "
+                f"(the other placements' median {p.others_mae_mm:.3f} mm) and {p.left_out} of {p.rows} were "
+                "left out as outliers: the fixture may have moved, or the ball slipped, while it was "
+                "recorded; record it again, or calibrate without its folder"
+            )
+    if data is not None:
+        out += _misplaced(misplaced, data, "fitted")
+    if test is not None:
+        out += _misplaced(
+            misplaced_rows(cal.model, cal.measurement, cal.theta, test, cal.extension), test, "held-out"
+        )
+    known = cal.measurement.point_distances if cal.measurement.measure.fixed_points else ()
+    unjudged = cal.test_after is not None and cal.test_after.point_distance_error_mm is None
+    if test is not None and known and unjudged:
+        pairs = ", ".join(f"{a}-{b}" for a, b, _ in known)
+        out.append(
+            f"the held-out points ({', '.join(test.point_names)}) hold no pair of a known distance "
+            f"({pairs}): their distance error is not judged; name them as the fitted data's points"
+        )
+    return out
+
+
+def _misplaced(found: list[Misplaced], data: Dataset, which: str) -> list[str]:
+    """One warning per pair of points (filed under, at) that has misplaced rows of ``data``."""
+    out = []
+    for point, near in dict.fromkeys((m.point, m.near) for m in found):
+        group = [m for m in found if (m.point, m.near) == (point, near)]
+        names = listed_names(tuple(data.row_name(m.row) for m in group), 6)
+        off, at = (f"{min(v):.2f}-{max(v):.2f}" for v in zip(*((m.off_mm, m.at_mm) for m in group)))
+        out.append(
+            f"{len(group)} {which} rows filed under point {point} sit at point {near} ({at} mm from its "
+            f"rows, {off} mm from {point}'s): the ball was in the other socket, or the rows were saved "
+            f"in the wrong file; move them to point {near}'s file: {names}"
+        )
+    return out
+
+
+def listed_names(names: tuple[str, ...], most: int = 10) -> str:
+    """The first ``most`` names, comma-separated, and how many more."""
+    return ", ".join(names[:most]) + (f" and {len(names) - most} more" if len(names) > most else "")

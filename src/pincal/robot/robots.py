@@ -1,0 +1,305 @@
+"""Robots: resolve a ROBOT argument, load its URDF into Pinocchio and take the base-to-tip chain.
+
+A :class:`Robot` holds the reduced Pinocchio model (every joint off the base-to-tip path, and any
+joint not asked for, is locked), the names and kinds of the chain's joints, and the nominal
+chain written as ``base_T_tip(q) = C_0 · exp(S_1 q_1) · C_1 · ... · exp(S_n q_n) · C_n``:
+constant placements ``C_k`` (the URDF's joint origins, then the tip frame's placement) and the
+joints' local unit twists ``S_j``. Lengths are metres, angles radians.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib.metadata
+import math
+import os
+import sys
+import tempfile
+from collections.abc import Callable, Iterable, Iterator, Mapping
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pinocchio as pin
+
+from pincal.errors import RobotError
+from pincal.options import BUNDLED
+from pincal.robot.descriptions import URDF_SUFFIXES, borrow_inertias, robot_description
+from pincal.robot.descriptions import (
+    read_urdf_text as read_urdf_text,  # re-exported: a robot file is read there
+)
+from pincal.robot.joint_kinds import actuated_joints, joint_path, mimic_joints, reference_configuration
+from pincal.robot.urdf_checks import check_urdf_structure
+
+if TYPE_CHECKING:
+    from pincal.robot.ur_frames import URKinematics
+
+_FRAME_PREFERENCE = (pin.FrameType.BODY, pin.FrameType.FIXED_JOINT, pin.FrameType.OP_FRAME)
+
+
+def bundled_urdf(name: str) -> Path:
+    """Path of a bundled robot's URDF.
+
+    Args:
+        name: one of :data:`BUNDLED`.
+    """
+    if name not in BUNDLED:
+        raise RobotError(f"unknown robot {name!r}: give a .urdf path or one of {', '.join(BUNDLED)}")
+    source, rel, _ = BUNDLED[name]
+    if source == "pincal":
+        package = Path(__file__).resolve().parents[1]  # pincal/
+        for folder in (package / "urdf", package.parents[1] / "urdf"):  # installed, then source tree
+            if (folder / rel).is_file():
+                return folder / rel
+        raise RobotError(f"bundled URDF {rel} is missing from this installation of pincal")
+    dist = importlib.metadata.distribution("example-robot-data")
+    path = Path(str(dist.locate_file("cmeel.prefix/share/example-robot-data/robots"))) / rel
+    if not path.is_file():
+        raise RobotError(f"example-robot-data has no {rel}: reinstall example-robot-data")
+    return path
+
+
+@dataclass(frozen=True, eq=False)
+class Robot:
+    """A serial chain from the URDF's root to a tip frame, on a reduced Pinocchio model.
+
+    Attributes:
+        name: the ROBOT argument as given (bundled name or path).
+        urdf_path: the URDF file.
+        model: reduced Pinocchio model whose joints are exactly the chain's joints, in order.
+        tip: name of the tip frame (the frame whose point or pose is measured).
+        tip_frame_id: index of the tip frame in ``model``.
+        joint_names: names of the chain's actuated joints, base to tip.
+        prismatic: for each chain joint, True when it is prismatic (its value is in metres).
+        lower: lower joint limits [rad or m] (-inf for continuous joints).
+        upper: upper joint limits [rad or m] (+inf for continuous joints).
+        urdf_joints: every joint name of the URDF (including those locked or off the chain).
+        urdf_text: the URDF the model was built from (a xacro's output, a kinematics YAML applied).
+        lent_text: that URDF with the masses lent by ``inertias`` (empty when none were lent):
+            what a corrected URDF is written from, so that its gravity torques are the fit's.
+    """
+
+    name: str
+    urdf_path: Path
+    model: pin.Model
+    tip: str
+    tip_frame_id: int
+    joint_names: tuple[str, ...]
+    prismatic: tuple[bool, ...]
+    lower: np.ndarray
+    upper: np.ndarray
+    urdf_joints: tuple[str, ...] = ()
+    urdf_text: str = field(default="", repr=False)
+    lent_text: str = field(default="", repr=False)
+
+    @property
+    def n_joints(self) -> int:
+        """Number of actuated joints in the chain."""
+        return len(self.joint_names)
+
+    @cached_property
+    def axes(self) -> np.ndarray:
+        """Local unit twists ``S_j`` of the chain's joints, (n, 6) in Pinocchio order (v, ω)."""
+        data = self.model.createData()
+        pin.forwardKinematics(self.model, data, pin.neutral(self.model))
+        return np.array([np.asarray(data.joints[j].S).reshape(6) for j in self._joint_ids])
+
+    @cached_property
+    def placements(self) -> tuple[pin.SE3, ...]:
+        """Nominal constant placements ``C_0 ... C_n`` of the chain (joint origins, then tip)."""
+        joints = [self.model.jointPlacements[j].copy() for j in self._joint_ids]
+        return (*joints, self.model.frames[self.tip_frame_id].placement.copy())
+
+    @property
+    def _joint_ids(self) -> range:
+        return range(1, self.model.njoints)
+
+    def configuration(self, q: np.ndarray) -> np.ndarray:
+        """Pinocchio configuration vector of the reduced model for chain joint values ``q``.
+
+        Args:
+            q: joint values (n,) [rad for revolute, m for prismatic].
+        """
+        q = np.asarray(q, dtype=float).reshape(self.n_joints)
+        out = np.empty(self.model.nq)
+        for k, j in enumerate(self._joint_ids):
+            joint = self.model.joints[j]
+            if joint.nq == 2:  # continuous joint: (cos, sin)
+                out[joint.idx_q : joint.idx_q + 2] = (math.cos(q[k]), math.sin(q[k]))
+            else:
+                out[joint.idx_q] = q[k]
+        return out
+
+    def frame_placement(self, q: np.ndarray) -> pin.SE3:
+        """``base_T_tip`` by Pinocchio's forward kinematics (the reference for every model)."""
+        data = self.model.createData()
+        pin.framesForwardKinematics(self.model, data, self.configuration(q))
+        return data.oMf[self.tip_frame_id].copy()
+
+    def frame_jacobian(self, q: np.ndarray) -> np.ndarray:
+        """Pinocchio's tip-frame Jacobian (6, n), LOCAL_WORLD_ALIGNED: rows (v [m/unit], ω [rad/unit])."""
+        data = self.model.createData()
+        pin.computeJointJacobians(self.model, data, self.configuration(q))
+        pin.updateFramePlacements(self.model, data)
+        return pin.getFrameJacobian(
+            self.model, data, self.tip_frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+        ).copy()
+
+    def random_configurations(self, n: int, rng: np.random.Generator, margin: float = 0.0) -> np.ndarray:
+        """Uniform joint values within the limits (continuous and ±2π joints drawn in [-π, π]).
+
+        Args:
+            n: number of configurations.
+            rng: random generator.
+            margin: fraction of each range left out at both ends.
+        """
+        lo = np.where(np.isfinite(self.lower), self.lower, -math.pi)
+        hi = np.where(np.isfinite(self.upper), self.upper, math.pi)
+        wide = (hi - lo) > 2 * math.pi
+        lo, hi = np.where(wide, -math.pi, lo), np.where(wide, math.pi, hi)
+        span = hi - lo
+        return lo + span * (margin + (1 - 2 * margin) * rng.random((n, self.n_joints)))
+
+
+def _deepest_body(model: pin.Model) -> str:
+    """The body frame with the most joints between the base and it (the last such, on ties)."""
+    bodies = [f for f in model.frames if f.type == pin.FrameType.BODY]
+    best = max(len(joint_path(model, f.parentJoint)) for f in bodies)
+    return next(f.name for f in reversed(bodies) if len(joint_path(model, f.parentJoint)) == best)
+
+
+@contextlib.contextmanager
+def _stderr_captured() -> Iterator[Callable[[], list[str]]]:
+    """Capture what C++ code writes to file descriptor 2 (urdfdom's parse errors)."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile(mode="w+b") as sink:
+        os.dup2(sink.fileno(), 2)
+        lines: list[str] = []
+        try:
+            yield lambda: lines
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            sink.seek(0)
+            lines.extend(sink.read().decode("utf-8", "replace").splitlines())
+
+
+def _find_frame(model: pin.Model, name: str) -> int:
+    matches = [i for i, f in enumerate(model.frames) if f.name == name]
+    if not matches:
+        links = sorted({f.name for f in model.frames if f.type == pin.FrameType.BODY})
+        raise RobotError(f"no frame named {name!r} in the URDF; links are: {', '.join(links)}")
+    for kind in _FRAME_PREFERENCE:
+        for i in matches:
+            if model.frames[i].type == kind:
+                return i
+    return matches[0]
+
+
+def load_robot(
+    robot: str | Path,
+    tip: str | None = None,
+    joints: Iterable[str] | None = None,
+    locked: Mapping[str, float] | None = None,
+    *,
+    xacro_args: Mapping[str, str] | None = None,
+    package_paths: Mapping[str, Path] | None = None,
+    kinematics: str | Path | URKinematics | None = None,
+    inertias: str | Path | None = None,
+) -> Robot:
+    """Load a robot and reduce it to the chain from its base to ``tip``.
+
+    Args:
+        robot: a ``.urdf`` or ``.xacro`` path, or a bundled name (see :data:`BUNDLED`).
+        tip: the measured frame; defaults to the bundled robot's documented tip, or the last link.
+        joints: if given, only these chain joints stay actuated (for example the data's columns);
+            the other chain joints are locked.
+        locked: values for locked joints [rad or m]; unspecified ones are locked at neutral.
+        xacro_args, package_paths, kinematics: a xacro's arguments and ``$(find)`` folders, and a
+            UR kinematics YAML applied on top (see :func:`pincal.robot.descriptions.robot_description`).
+        inertias: a URDF (or bundled name) whose links lend their masses to the links of the same
+            name that have none (:func:`pincal.robot.descriptions.borrow_inertias`), for gravity torques;
+            ``urdf_text`` stays the URDF's own.
+
+    Raises:
+        RobotError: unknown name, unreadable URDF, unknown tip frame or joint.
+    """
+    name = str(robot)
+    if name in BUNDLED:
+        path = bundled_urdf(name)
+        tip = tip or BUNDLED[name][2]
+    else:
+        path = Path(name)
+        if path.suffix.lower() not in URDF_SUFFIXES:
+            raise RobotError(f"unknown robot {name!r}: give a .urdf path or one of {', '.join(BUNDLED)}")
+        if not path.exists():
+            raise RobotError(f"URDF file not found: {path}")
+    text = robot_description(path, xacro_args, package_paths, kinematics)
+    lent = "" if inertias is None else _with_inertias(text, inertias)
+    full, mimic = _parse_urdf(path, lent or text)
+    if tip is None:
+        tip = _deepest_body(full)
+    tip_id = _find_frame(full, tip)
+    if full.frames[tip_id].parentJoint == 0:
+        raise RobotError(
+            f"frame {tip!r} has no joint between the base and it: choose a tip on the arm with --tip"
+        )
+    keep = actuated_joints(full, tip_id, tip, joints, mimic)
+    q_ref = reference_configuration(full, locked)
+    lock = [j for j in range(1, full.njoints) if j not in keep]
+    model = pin.buildReducedModel(full, lock, q_ref) if lock else full
+    tip_id = _find_frame(model, tip)
+    if model.frames[tip_id].parentJoint != model.njoints - 1 and model.njoints > 1:
+        raise RobotError(f"frame {tip!r} is not at the end of the chain")  # pragma: no cover
+    names = tuple(model.names[1:])
+    prismatic = tuple(model.joints[j].shortname().startswith("JointModelP") for j in range(1, model.njoints))
+    lower, upper = np.full(len(names), -np.inf), np.full(len(names), np.inf)
+    for k in range(len(names)):
+        joint = model.joints[k + 1]
+        if joint.nq != 2:  # a continuous joint (cos, sin) has no limits
+            lower[k], upper[k] = model.lowerPositionLimit[joint.idx_q], model.upperPositionLimit[joint.idx_q]
+    return Robot(
+        name=name,
+        urdf_path=path,
+        model=model,
+        tip=tip,
+        tip_frame_id=tip_id,
+        joint_names=names,
+        prismatic=prismatic,
+        lower=lower,
+        upper=upper,
+        urdf_joints=tuple(full.names[1:]),
+        urdf_text=text,
+        lent_text=lent,
+    )
+
+
+def _with_inertias(text: str, donor: str | Path) -> str:
+    """``text`` with the masses of the URDF or bundled robot ``donor`` (see :func:`load_robot`)."""
+    name = str(donor)
+    path = bundled_urdf(name) if name in BUNDLED else Path(name)
+    if not path.is_file():
+        raise RobotError(f"--inertias {name}: no such URDF file, nor a bundled robot ({', '.join(BUNDLED)})")
+    return borrow_inertias(text, robot_description(path), name)
+
+
+def _parse_urdf(path: Path, text: str) -> tuple[pin.Model, dict[str, str]]:
+    """The full Pinocchio model of a URDF's ``text`` (read from ``path``), and its mimic joints
+    (name -> the joint it mimics).
+
+    Raises:
+        RobotError: a structure that is not a tree of well-formed joints
+            (:func:`~pincal.robot.urdf_checks.check_urdf_structure`), or a URDF Pinocchio cannot parse
+            (with urdfdom's own error line when it wrote one).
+    """
+    check_urdf_structure(text, path)  # what would crash or mislead the parser, refused first
+    with _stderr_captured() as said:
+        try:
+            return pin.buildModelFromXML(text), mimic_joints(text)
+        except (RuntimeError, ValueError) as exc:
+            error = " ".join(str(exc).split())
+    detail = next((ln.strip() for ln in said() if ln.strip().lower().startswith("error")), "")
+    raise RobotError(f"cannot load URDF {path}: {detail or error}: fix the URDF (check it with check_urdf)")

@@ -1,0 +1,1 @@
+"""Simulated robots, instruments and recordings for tests, the demo and the notebooks."""

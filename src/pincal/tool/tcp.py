@@ -1,0 +1,330 @@
+"""Tool frame calibration (TCP and tool orientation) from flange poses, Xiong et al. 2012.
+
+TCP: the flange poses ``(R_i, p_i)`` touch one fixed point, so ``R_i t + p_i`` is the same for all
+poses (eq. 5); the TCP ``t`` in the flange frame is the least-squares solution of the stacked
+differences ``(R_i - R_{i+1}) t = p_{i+1} - p_i`` (eqs. 6-9), and δ (eq. 10) is the norm of their
+residual. Each pose's residual is the distance of its TCP point ``R_i t + p_i`` from the common
+point of a fit without that pose, so a badly taught pose stands out. The standard deviation of
+``t`` is that of the eq. 7 estimate, with the noise of the TCP points estimated from their scatter.
+
+Orientation (eqs. 11-18): ``default`` keeps the flange axes; ``z`` takes the tool's +Z from a
+pure move along it (X from the flange's X); ``zx`` takes +X and +Z from two moves, then
+orthonormalises as the paper does (``o = a × n``, ``a = n × o``). Lengths are in the data's unit.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from pincal.data.checks import bounded_spread
+from pincal.data.dataset import UNITS, csv_columns, read_table, unit_quaternions
+from pincal.errors import DataError
+from pincal.options import ORIENTATIONS
+from pincal.robot.robots import Robot
+from pincal.threads import limited
+from pincal.units import joints_from_file
+
+#: Shortest accepted orientation move [m].
+MIN_MOVE = 0.005
+#: Coefficient matrices worse conditioned than this get a warning.
+WARN_CONDITION = 30.0
+#: A pose is suspect when its leave-one-out distance exceeds this many times the others' scatter.
+SUSPECT_RATIO = 6.0
+
+
+@dataclass(frozen=True)
+class ToolCalibration:
+    """A calibrated tool frame on the flange.
+
+    Attributes:
+        tcp: tool centre point in the flange frame (3,), in the data's unit.
+        rotation: ``flange_R_tool`` (3, 3).
+        fit_error: δ of eq. 10, in the data's unit.
+        tcp_std: standard deviation of each TCP coordinate (3,).
+        point: the fixed point touched, in the base frame (3,).
+        residuals: per TCP pose, distance of its TCP point from the common point of a fit
+            without that pose (n,): a badly taught pose stands out (with 3 poses, from ``point``).
+        condition_number: of the TCP coefficient matrix (eq. 6).
+        suspects: per TCP pose, whether it looks badly taught (see :func:`_leave_one_out`).
+        warnings: near-degenerate input, said in words.
+    """
+
+    tcp: np.ndarray
+    rotation: np.ndarray
+    fit_error: float
+    tcp_std: np.ndarray
+    point: np.ndarray
+    residuals: np.ndarray
+    condition_number: float
+    suspects: np.ndarray
+    warnings: tuple[str, ...] = field(default_factory=tuple)
+
+
+def euler_zyx(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """``R = Rz(a) · Ry(b) · Rx(c)`` for angles [rad] (N,) -> (N, 3, 3) (Xiong's eq. 19, corrected)."""
+    ca, sa, cb, sb, cc, sc = np.cos(a), np.sin(a), np.cos(b), np.sin(b), np.cos(c), np.sin(c)
+    return np.stack(
+        [
+            np.stack([ca * cb, ca * sb * sc - sa * cc, ca * sb * cc + sa * sc], -1),
+            np.stack([sa * cb, sa * sb * sc + ca * cc, sa * sb * cc - ca * sc], -1),
+            np.stack([-sb, cb * sc, cb * cc], -1),
+        ],
+        axis=1,
+    )
+
+
+def _differences(rotations: np.ndarray, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Eq. 6: the stacked ``R_i - R_{i+1}`` (3(n-1), 3) and ``p_{i+1} - p_i`` (3(n-1),)."""
+    return (rotations[:-1] - rotations[1:]).reshape(-1, 3), (positions[1:] - positions[:-1]).reshape(-1)
+
+
+def tcp_position(rotations: np.ndarray, positions: np.ndarray) -> tuple[np.ndarray, float, float]:
+    """TCP by eqs. 6-9 and δ by eq. 10.
+
+    Args:
+        rotations: flange orientations ``base_R_flange`` (n, 3, 3), n >= 3.
+        positions: flange positions (n, 3).
+
+    Returns:
+        The TCP (3,), δ, and the condition number of the coefficient matrix.
+
+    Raises:
+        DataError: fewer than 3 poses, or orientations that cannot locate the TCP (rank < 3).
+    """
+    n = len(rotations)
+    if n < 3:
+        raise DataError(
+            f"{n} TCP pose(s): with 2 poses the coefficient matrix R1 - R2 is always singular "
+            "(Xiong 2012, eq. 6); teach at least 3 poses touching the point from different orientations"
+        )
+    lhs, rhs = _differences(rotations, positions)
+    sv = np.linalg.svd(lhs, compute_uv=False)
+    cond = float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf")
+    if cond > 1e6:
+        axis = np.linalg.svd(lhs)[2][-1]
+        raise DataError(
+            "the TCP poses' orientations all turn about one axis "
+            f"({axis[0]:.3f}, {axis[1]:.3f}, {axis[2]:.3f} in the flange frame), so the TCP along it is "
+            "unknown (rank < 3): tilt the tool about another axis in at least one pose"
+        )
+    tcp = np.linalg.lstsq(lhs, rhs, rcond=None)[0]
+    return tcp, float(np.linalg.norm(lhs @ tcp - rhs)), cond
+
+
+def _move_direction(
+    rot_o: np.ndarray,
+    p_o: np.ndarray,
+    rot_m: np.ndarray,
+    p_m: np.ndarray,
+    tcp: np.ndarray,
+    label: str,
+    scale: float,
+) -> np.ndarray:
+    """Unit direction of a TCP move in the first pose's flange frame (eqs. 13-16)."""
+    move = rot_m @ tcp - rot_o @ tcp + p_m - p_o
+    length = float(np.linalg.norm(move))
+    if length < MIN_MOVE * scale:
+        raise DataError(
+            f"the +{label} move is only {length:.4g} (data units): move the TCP at least "
+            f"{MIN_MOVE * scale:.4g} along the tool's +{label} axis"
+        )
+    return rot_o.T @ move / length
+
+
+def tool_orientation(
+    method: str, rotations: np.ndarray, positions: np.ndarray, tcp: np.ndarray, scale: float = 1.0
+) -> tuple[np.ndarray, list[str]]:
+    """``flange_R_tool`` by the paper's default, Z or Z/X method.
+
+    Args:
+        method: ``default``, ``z`` (rows: origin, +Z) or ``zx`` (rows: origin, +X, +Z).
+        rotations: the orientation rows' flange orientations.
+        positions: their flange positions.
+        tcp: the calibrated TCP.
+        scale: data units per metre (1000 for mm), for the shortest accepted move.
+
+    Returns:
+        The rotation and any warnings.
+    """
+    warnings: list[str] = []
+    if method == "default":
+        return np.eye(3), warnings
+    turn = max(
+        np.degrees(np.arccos(np.clip((np.trace(rotations[0].T @ r) - 1) / 2, -1, 1))) for r in rotations
+    )
+    if turn > 1.0:
+        warnings.append(
+            f"the orientation rows turn the flange by up to {turn:.2f} deg: they should be pure moves"
+        )
+    if method == "z":
+        a = _move_direction(rotations[0], positions[0], rotations[1], positions[1], tcp, "Z", scale)
+        n = np.array([1.0, 0.0, 0.0])
+    else:
+        n = _move_direction(rotations[0], positions[0], rotations[1], positions[1], tcp, "X", scale)
+        a = _move_direction(rotations[0], positions[0], rotations[2], positions[2], tcp, "Z", scale)
+    angle = float(np.degrees(np.arccos(np.clip(abs(n @ a), 0.0, 1.0))))
+    if angle < 30.0:
+        what = "the +X and +Z moves" if method == "zx" else "the +Z move and the flange's X axis"
+        raise DataError(f"{what} are nearly parallel ({angle:.1f} deg apart): they must be perpendicular")
+    if angle < 80.0:
+        warnings.append(f"the X and Z directions are {angle:.1f} deg apart, not 90: check the moves")
+    o = np.cross(a, n)
+    o /= np.linalg.norm(o)
+    if method == "z":  # keep the measured Z, complete X from the flange's X
+        n = np.cross(o, a)
+        return np.column_stack([n, o, a]), warnings
+    a = np.cross(n, o)
+    return np.column_stack([n, o, a]), warnings
+
+
+@limited
+def calibrate_tool(
+    rotations: np.ndarray, positions: np.ndarray, orientation: str = "default", scale: float = 1.0
+) -> ToolCalibration:
+    """TCP and tool orientation from flange poses (rows as ``docs/formats.md`` describes them).
+
+    Args:
+        rotations: ``base_R_flange`` of each row (n, 3, 3).
+        positions: flange positions of each row (n, 3), in the data's unit.
+        orientation: ``default`` (all rows are TCP rows), ``z`` (the last two rows are origin and
+            +Z) or ``zx`` (the last three rows are origin, +X, +Z; every row but the last two is a
+            TCP row, the origin row being shared).
+        scale: data units per metre (1000 for mm), for the thresholds.
+    """
+    if orientation not in ORIENTATIONS:
+        raise DataError(f"unknown orientation method {orientation!r}: use one of {', '.join(ORIENTATIONS)}")
+    n_rows = len(rotations)
+    n_orient = {"default": 0, "z": 2, "zx": 3}[orientation]
+    n_tcp = n_rows - n_orient + 1 if n_orient else n_rows
+    if n_orient and n_rows < n_orient + 2:
+        raise DataError(
+            f"--orientation {orientation} needs at least {n_orient + 2} rows "
+            f"(3 TCP poses, the last shared with the orientation rows), got {n_rows}"
+        )
+    tcp, delta, cond = tcp_position(rotations[:n_tcp], positions[:n_tcp])
+    warnings: list[str] = []
+    if cond > WARN_CONDITION:
+        warnings.append(
+            f"the TCP poses are nearly degenerate (condition number {cond:.3g}): vary the orientations more"
+        )
+    orient_rows = slice(n_tcp - 1, n_rows)
+    rot, more = tool_orientation(orientation, rotations[orient_rows], positions[orient_rows], tcp, scale)
+    warnings += more
+
+    points = rotations[:n_tcp] @ tcp + positions[:n_tcp]
+    point = points.mean(axis=0)
+    residuals, suspects = _leave_one_out(rotations[:n_tcp], positions[:n_tcp], points)
+    return ToolCalibration(
+        tcp=tcp,
+        rotation=rot,
+        fit_error=delta,
+        tcp_std=_tcp_std(rotations[:n_tcp], positions[:n_tcp], points - point),
+        point=point,
+        residuals=residuals,
+        suspects=suspects,
+        condition_number=cond,
+        warnings=tuple(warnings),
+    )
+
+
+def _tcp_std(rotations: np.ndarray, positions: np.ndarray, scatter: np.ndarray) -> np.ndarray:
+    """Standard deviation of the eq. 7 estimate, each TCP point ``R_i t + p_i`` carrying independent
+    noise of variance σ² per axis (estimated from ``scatter`` with 3n - 6 degrees of freedom).
+
+    The residuals of eq. 6 are differences of consecutive points, ``D ε``, so the estimate's
+    covariance is ``σ² A⁺ D Dᵀ A⁺ᵀ``.
+    """
+    n = len(rotations)
+    pinv = np.linalg.pinv(_differences(rotations, positions)[0])
+    diff = np.zeros((n - 1, n))
+    diff[np.arange(n - 1), np.arange(n - 1)] = -1.0
+    diff[np.arange(n - 1), np.arange(1, n)] = 1.0
+    ddt = np.kron(diff @ diff.T, np.eye(3))
+    sigma2 = float(np.sum(scatter**2)) / max(1, 3 * n - 6)
+    return np.sqrt(np.clip(np.diag(pinv @ ddt @ pinv.T) * sigma2, 0.0, None))
+
+
+def _leave_one_out(
+    rotations: np.ndarray, positions: np.ndarray, points: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per pose, the distance of its TCP point from the common point of a fit without it (with 3
+    poses, of the fit with all), and whether that distance is far outside the scatter of that fit.
+
+    A pose is suspect when the others fit well without it: its distance exceeds
+    :data:`SUSPECT_RATIO` times their RMS scatter per axis (5 or more poses; in simulation with
+    6 poses this flags a 2 mm mistake among 0.01 mm noise 98 % of the time, a clean set 6 %).
+    """
+    n = len(rotations)
+    if n < 4:
+        return np.linalg.norm(points - points.mean(axis=0), axis=1), np.zeros(n, dtype=bool)
+    out = np.empty(n)
+    scatter = np.empty(n)
+    for i in range(n):
+        keep = np.arange(n) != i
+        lhs, rhs = _differences(rotations[keep], positions[keep])
+        t = np.linalg.lstsq(lhs, rhs, rcond=None)[0]
+        kept = rotations[keep] @ t + positions[keep]
+        common = kept.mean(axis=0)
+        out[i] = np.linalg.norm(rotations[i] @ t + positions[i] - common)
+        scatter[i] = np.sqrt(np.sum((kept - common) ** 2) / max(1, 3 * (n - 1) - 6))
+    return out, (out > SUSPECT_RATIO * scatter) if n >= 5 else np.zeros(n, dtype=bool)
+
+
+def read_flange_poses(
+    path: str | Path,
+    units: str = "m",
+    rename: dict[str, str] | None = None,
+    robot: Robot | None = None,
+    degrees: bool = False,
+    quaternion_order: str = "wxyz",
+) -> tuple[np.ndarray, np.ndarray]:
+    """Flange poses from a CSV: ``x,y,z,a,b,c`` (degrees, R = Rz(a) Ry(b) Rx(c)), ``x,y,z,qw,qx,qy,qz``,
+    or, with ``robot``, joint columns turned into flange poses by its forward kinematics.
+
+    Args:
+        path: the CSV.
+        units: unit of ``x,y,z`` and of the results (``m`` or ``mm``).
+        rename: map from the contract's column names to the file's (``{"x": "X_mm", ...}``).
+        robot: compute the flange poses from joint columns with this robot's tip frame.
+        degrees: with ``robot``, revolute joint values are in degrees.
+        quaternion_order: ``wxyz``: ``qw,qx,qy,qz`` hold what their names say; ``xyzw``: the four
+            quaternion columns, left to right, hold x, y, z, w.
+
+    Returns:
+        Rotations (n, 3, 3) and positions (n, 3) in ``units``.
+    """
+    if units not in UNITS:
+        raise DataError(f"unknown unit {units!r}: use m or mm")
+    if robot is not None:
+        q = read_table(path, robot.joint_names, f"the joints {', '.join(robot.joint_names)}", rename)
+        q = joints_from_file(q, degrees, units, robot.prismatic)
+        poses = [robot.frame_placement(qi) for qi in q]
+        return np.array([m.rotation for m in poses]), np.array([m.translation for m in poses]) / UNITS[units]
+    columns = csv_columns(path)
+    header = set(columns)
+    names = {(rename or {}).get(c, c) for c in ("qw", "qx", "qy", "qz")}
+    if names & header and not names <= header:
+        raise DataError(
+            f"{path}: the header has {', '.join(sorted(names & header))} but not "
+            f"{', '.join(sorted(names - header))}: a quaternion needs all four columns qw,qx,qy,qz"
+        )
+    if names <= header:
+        quat = ["qw", "qx", "qy", "qz"]
+        if quaternion_order == "xyzw":  # the four columns left to right are x, y, z, w
+            mine = {(rename or {}).get(c, c): c for c in quat}
+            ordered = [mine[c] for c in columns if c in mine]
+            quat = [ordered[3], *ordered[:3]]
+        values = read_table(path, ["x", "y", "z", *quat], "x,y,z,qw,qx,qy,qz", rename)
+        quats = unit_quaternions(path, values[:, 3:])
+        rotations = np.array([pin.Quaternion(*qt).toRotationMatrix() for qt in quats])
+        bounded_spread(values[:, :3] * UNITS[units], "flange positions x,y,z")
+        return rotations, values[:, :3]
+    values = read_table(
+        path, ["x", "y", "z", "a", "b", "c"], "x,y,z and a,b,c [deg] (or qw,qx,qy,qz)", rename
+    )
+    bounded_spread(values[:, :3] * UNITS[units], "flange positions x,y,z")
+    return euler_zyx(*np.deg2rad(values[:, 3:]).T), values[:, :3]
