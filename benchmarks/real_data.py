@@ -4,7 +4,7 @@ For each dataset (layouts in ``DATASETS_DIR/SOURCES.md``; nothing is copied from
 the training part, judges on the held-out part and prints one table: dataset, model, identified
 parameters (model, registration and tool), RMS on the fitted poses, held-out RMS, the anchor's
 published figure and the median wall time of the identification step (:func:`pincal.calibrate`,
-plus :func:`pincal.auto.selection.select_parameters` for the selected models). Then what
+plus :func:`pincal.identify.forward_selection.select_parameters` for the selected models). Then what
 ``diagnose`` names on each, the selections, and a scaling run of identification time against
 the number of poses and of joints, saved as a PNG.
 
@@ -22,7 +22,8 @@ the number of poses and of joints, saved as a PNG.
 - ``gao2013``: Table 2 of Gao et al. 2013 (``--gao-data``), distances between the 28 tracker
   points, POE (the paper's model), 7-fold cross-validation over poses.
 
-"Selected" models fit only the parameters :func:`pincal.auto.selection.select_parameters` chooses by
+"Selected" models fit only the parameters
+:func:`pincal.identify.forward_selection.select_parameters` chooses by
 leave-one-out cross-validation on the fitted poses alone. Their held-out figure for the
 cross-validated datasets is *nested*: the selection is re-run inside every fold.
 

@@ -175,7 +175,7 @@ def test_real_urdfs_pass_the_check() -> None:
     """No false refusal: every bundled robot's URDF passes, and loads."""
     for name in BUNDLED:
         path = pincal.robot.robots.bundled_urdf(name)
-        check_urdf_structure(pincal.robot.robots.read_urdf_text(path), path)
+        check_urdf_structure(pincal.robot.descriptions.read_urdf_text(path), path)
         assert pincal.load_robot(name).n_joints > 0
 
 

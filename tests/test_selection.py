@@ -22,8 +22,9 @@ import numpy as np
 import pytest
 
 import pincal
-from pincal.auto.crossval import fold_indices, held_out_rows
-from pincal.auto.selection import Selection, cross_validate_selection, select_parameters
+from pincal.auto.selection import cross_validate_selection
+from pincal.identify.folds import fold_indices, held_out_rows
+from pincal.identify.forward_selection import Selection, select_parameters
 from pincal.identify.solver import set_up
 from pincal.kinematics.models import PlacementsModel
 from pincal.simulation.truth import TrueRobot, points_truth, simulate_points

@@ -214,7 +214,6 @@ def test_a_regular_file_is_read_whole_once(
         return real(path, what)
 
     monkeypatch.setattr(pincal.files, "read_input_text", counted)
-    monkeypatch.setattr(pincal.data.dataset, "read_input_text", counted)
     assert main(["calibrate", "ur5", str(data), *FIT]) == 0, capsys.readouterr().err
     assert whole.count(str(data)) == 1
     assert pincal.data.dataset.csv_columns(data) == csv_text.splitlines()[0].split(",")

@@ -24,13 +24,8 @@ import yaml
 from cli_run import one_error_line, run
 
 import pincal
-from pincal.export.ur_yaml import (
-    DEFAULT_DH,
-    SEGMENTS,
-    default_ur_kinematics,
-    read_ur_kinematics,
-    write_ur_kinematics,
-)
+from pincal.export.ur_yaml import write_ur_kinematics
+from pincal.robot.ur_frames import DEFAULT_DH, SEGMENTS, default_ur_kinematics, read_ur_kinematics
 
 KEYS = ("x", "y", "z", "roll", "pitch", "yaw")
 FACTORY_HASH = "calib_12788084448423163542"

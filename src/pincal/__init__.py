@@ -37,20 +37,11 @@ if TYPE_CHECKING:  # for type checkers (``as``: re-exported); at run time each l
     from .data.dataset import read_csv as read_csv
     from .data.dataset import write_csv as write_csv
     from .demo import gao2013_data as gao2013_data
-    from .export.calibrated_robot import (
-        CalibratedRobot as CalibratedRobot,
-    )
-    from .export.calibrated_robot import (
-        load_calibration as load_calibration,
-    )
+    from .export.calibrated_robot import CalibratedRobot as CalibratedRobot
+    from .export.calibrated_robot import load_calibration as load_calibration
     from .export.compensate import Compensation as Compensation
     from .export.compensate import compensate_program as compensate_program
-    from .export.ur_yaml import (
-        read_ur_kinematics as read_ur_kinematics,
-    )
-    from .export.ur_yaml import (
-        write_ur_kinematics as write_ur_kinematics,
-    )
+    from .export.ur_yaml import write_ur_kinematics as write_ur_kinematics
     from .export.urdf_writer import write_corrected_urdf as write_corrected_urdf
     from .identify.calibration import Calibration as Calibration
     from .identify.evaluation import ErrorStats as ErrorStats
@@ -64,6 +55,7 @@ if TYPE_CHECKING:  # for type checkers (``as``: re-exported); at run time each l
     from .report.summary_table import summary as summary
     from .robot.robots import Robot as Robot
     from .robot.robots import load_robot as load_robot
+    from .robot.ur_frames import read_ur_kinematics as read_ur_kinematics
     from .simulation.truth import random_truth as random_truth
     from .simulation.truth import simulate as simulate
     from .tool.tcp import ToolCalibration as ToolCalibration
@@ -84,7 +76,6 @@ _LAZY: dict[str, str] = {
     "load_calibration": "export.calibrated_robot",
     "Compensation": "export.compensate",
     "compensate_program": "export.compensate",
-    "read_ur_kinematics": "export.ur_yaml",
     "write_ur_kinematics": "export.ur_yaml",
     "write_corrected_urdf": "export.urdf_writer",
     "Calibration": "identify.calibration",
@@ -99,6 +90,7 @@ _LAZY: dict[str, str] = {
     "summary": "report.summary_table",
     "Robot": "robot.robots",
     "load_robot": "robot.robots",
+    "read_ur_kinematics": "robot.ur_frames",
     "random_truth": "simulation.truth",
     "simulate": "simulation.truth",
     "ToolCalibration": "tool.tcp",

@@ -8,11 +8,7 @@ from typing import Any
 
 from pincal.auto.pipeline import calibrate
 from pincal.data.dataset import Dataset
-from pincal.identify.folds import fold_indices as fold_indices  # where tests and older callers find them
-from pincal.identify.folds import held_out_rows as held_out_rows
-from pincal.identify.kfold import CrossValidation as CrossValidation
-from pincal.identify.kfold import cross_validate_with
-from pincal.identify.kfold import held_out_errors as held_out_errors
+from pincal.identify.kfold import CrossValidation, cross_validate_with
 from pincal.kinematics.models import Model
 from pincal.robot.robots import Robot
 

@@ -8,14 +8,9 @@ from collections.abc import Callable
 from typing import Any
 
 from pincal.auto.diagnosis import (
-    ALPHA as ALPHA,  # re-exported: where the notebooks and older callers find them
+    Diagnosis,
+    diagnose_with,
 )
-from pincal.auto.diagnosis import FINALISTS as FINALISTS
-from pincal.auto.diagnosis import MIN_GAIN as MIN_GAIN
-from pincal.auto.diagnosis import QUICK_GAIN as QUICK_GAIN
-from pincal.auto.diagnosis import Candidate as Candidate
-from pincal.auto.diagnosis import Diagnosis, diagnose_with
-from pincal.auto.diagnosis import extended_calibration as extended_calibration
 from pincal.auto.pipeline import calibrate
 from pincal.data.dataset import Dataset
 from pincal.kinematics.effects import Extension, Payload

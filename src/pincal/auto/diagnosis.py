@@ -339,8 +339,3 @@ def diagnose_with(
     rejected = tuple(c for c in paying if c.implausible is not None)
     cause = next((c for c in paying if c.implausible is None), None)
     return Diagnosis(base, base_rms, cause, tuple(judged), folds, data.q, rejected)
-
-
-def extended_calibration(diagnosis: Diagnosis) -> Calibration:
-    """The fit on all poses with the named cause (the baseline's when there is none)."""
-    return diagnosis.extended

@@ -12,16 +12,6 @@ from pincal.auto.choice import choice_of
 from pincal.auto.crossval import cross_validate
 from pincal.data.dataset import Dataset
 from pincal.identify.evaluation import ErrorStats
-from pincal.identify.forward_selection import (
-    KEEP_ALL as KEEP_ALL,  # re-exported: where tests and older callers find them
-)
-from pincal.identify.forward_selection import MIN_GAIN as MIN_GAIN
-from pincal.identify.forward_selection import Selection as Selection
-from pincal.identify.forward_selection import SelectionStep as SelectionStep
-from pincal.identify.forward_selection import choose_step as choose_step
-from pincal.identify.forward_selection import select_on as select_on
-from pincal.identify.forward_selection import select_parameters as select_parameters
-from pincal.identify.forward_selection import selection_path as selection_path
 from pincal.robot.robots import Robot
 
 

@@ -25,7 +25,7 @@ from pincal.cli.common import (
 from pincal.cli.pull_options import pull
 from pincal.data.dataset import Dataset
 from pincal.errors import DataError
-from pincal.export.ur_yaml import DEFAULT_DH, read_ur_kinematics, robot_ur_chain, write_ur_kinematics
+from pincal.export.ur_yaml import robot_ur_chain, write_ur_kinematics
 from pincal.export.urdf_writer import check_frame_name, corrected_files, sidecar_path
 from pincal.files import STDIN, atomic_write_many
 from pincal.identify.calibration import Calibration
@@ -33,6 +33,7 @@ from pincal.report.outcome import Outcome, outcome
 from pincal.report.report import report_json
 from pincal.report.summary_table import summary
 from pincal.robot.robots import Robot
+from pincal.robot.ur_frames import DEFAULT_DH, read_ur_kinematics
 
 #: ``--nested`` -> the ``nested`` argument of :func:`pincal.calibrate`.
 NESTED = {"auto": None, "yes": True, "no": False}

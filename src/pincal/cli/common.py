@@ -50,8 +50,9 @@ def robot_options(args: argparse.Namespace) -> dict[str, Any]:
     """Keyword arguments of :func:`pincal.load_robot` from ``--xacro-arg``, ``--package-path``,
     ``--kinematics`` (for a bundled UR written as, or compensated with, a UR YAML:
     ``ur_description``'s default) and ``--inertias``."""
-    from pincal.export.ur_yaml import DEFAULT_DH, default_ur_kinematics, is_yaml
+    from pincal.export.ur_yaml import is_yaml
     from pincal.robot.descriptions import parse_package_paths, parse_xacro_args
+    from pincal.robot.ur_frames import DEFAULT_DH, default_ur_kinematics
 
     kinematics = getattr(args, "kinematics", None)
     ur_frames = ur_yaml_output(args) or is_yaml(getattr(args, "calibration", None))

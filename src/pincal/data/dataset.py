@@ -24,7 +24,6 @@ import pinocchio as pin
 from pincal.data.csv_table import check_locked, content_lines, parse_header, quaternion_columns, read_columns
 from pincal.errors import DataError
 from pincal.files import STDIN, atomic_write, first_line
-from pincal.files import read_input_text as read_input_text  # re-exported: tests count its reads
 from pincal.options import UNITS
 from pincal.robot.robots import Robot
 

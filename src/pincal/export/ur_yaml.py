@@ -34,12 +34,11 @@ from pincal.files import atomic_write
 from pincal.json_text import json_text
 from pincal.robot.robots import Robot
 from pincal.robot.ur_frames import (
-    DEFAULT_DH as DEFAULT_DH,  # re-exported: the YAML read is pincal.robot.ur_frames'
+    JOINTS,
+    PARSER,
+    URChain,
+    URKinematics,
 )
-from pincal.robot.ur_frames import JOINTS, PARSER, URChain, URKinematics
-from pincal.robot.ur_frames import SEGMENTS as SEGMENTS
-from pincal.robot.ur_frames import default_ur_kinematics as default_ur_kinematics
-from pincal.robot.ur_frames import read_ur_kinematics as read_ur_kinematics
 
 if TYPE_CHECKING:
     from pincal.identify.calibration import Calibration

@@ -19,11 +19,12 @@ from typing import Any
 import numpy as np
 
 from pincal.data.dataset import Dataset
+from pincal.data.pairs import all_pairs
 from pincal.errors import DataError, IdentifiabilityError
 from pincal.identify.calibration import Calibration
 from pincal.identify.evaluation import ErrorStats, pose_errors
 from pincal.identify.folds import fold_indices
-from pincal.identify.measurements import Problem, all_pairs
+from pincal.identify.measurements import Problem
 from pincal.kinematics.models import Model
 from pincal.robot.robots import Robot
 from pincal.threads import limited

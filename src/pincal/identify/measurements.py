@@ -31,15 +31,13 @@ import numpy as np
 import pinocchio as pin
 
 from pincal.data.dataset import Dataset
-from pincal.data.pairs import all_pairs as all_pairs  # re-exported: the pairings live in pincal.data.pairs
-from pincal.data.pairs import gao_pairs as gao_pairs
+from pincal.data.pairs import all_pairs
 from pincal.identify import chunked
 from pincal.identify.fixed_points import PointDistance, check_distances, point_index, point_means
 from pincal.identify.kinds import MeasurementKind, get_kind
 from pincal.kinematics.chain import Chain, Frames, forward, stacked_dot, twist_columns
 from pincal.kinematics.effects import Extension
 from pincal.kinematics.models import Model
-from pincal.options import MEASURES as MEASURES
 from pincal.options import ROTATION_WEIGHT
 
 

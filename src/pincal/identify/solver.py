@@ -29,6 +29,7 @@ from scipy.optimize import OptimizeResult, least_squares
 
 from pincal.data.checks import spread
 from pincal.data.dataset import Dataset
+from pincal.data.pairs import gao_pairs
 from pincal.errors import DataError, IdentifiabilityError
 from pincal.identify import chunked
 from pincal.identify.calibration import Calibration
@@ -36,7 +37,7 @@ from pincal.identify.evaluation import evaluate
 from pincal.identify.fixed_points import PointDistance, blind_jacobian, gauge_reasons, placed_distances
 from pincal.identify.identifiability import RCOND, Identifiability, analyse, check_rank, parameter_scale
 from pincal.identify.lm import levenberg_marquardt
-from pincal.identify.measurements import ROTATION_WEIGHT, Measurement, Problem, gao_pairs, get_kind
+from pincal.identify.measurements import ROTATION_WEIGHT, Measurement, Problem, get_kind
 from pincal.identify.outliers import find_outliers
 from pincal.identify.registration import initial_measurement
 from pincal.kinematics.chain import Chain, forward

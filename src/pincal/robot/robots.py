@@ -26,9 +26,10 @@ import pinocchio as pin
 
 from pincal.errors import RobotError
 from pincal.options import BUNDLED
-from pincal.robot.descriptions import URDF_SUFFIXES, borrow_inertias, robot_description
 from pincal.robot.descriptions import (
-    read_urdf_text as read_urdf_text,  # re-exported: a robot file is read there
+    URDF_SUFFIXES,
+    borrow_inertias,
+    robot_description,
 )
 from pincal.robot.joint_kinds import actuated_joints, joint_path, mimic_joints, reference_configuration
 from pincal.robot.urdf_checks import check_urdf_structure

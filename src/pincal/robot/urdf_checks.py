@@ -3,7 +3,7 @@
 urdfdom and Pinocchio's URDF parser trust the file: a link that is its own parent or a closed
 loop of joints crashes the process (SIGSEGV), a joint axis ``0 0 0`` gives a model that is no
 rotation at all, and a chain of a thousand joints exhausts the memory. :func:`check_urdf_structure`
-reads the text with :mod:`xml.etree` (whose DOCTYPE :func:`pincal.robot.robots.read_urdf_text` has
+reads the text with :mod:`xml.etree` (whose DOCTYPE :func:`pincal.robot.descriptions.read_urdf_text` has
 already cleared) and refuses, with one line naming the joint or link:
 
 - a root element that is not ``<robot>``, a link or joint without a name, or a name used twice;
