@@ -149,8 +149,8 @@ def calibrate(
         params: None or ``"all"`` (every identifiable one), ``"auto"`` (chosen by cross-validation
             on ``data``) or names; the others stay nominal (registration, tool always fitted).
         outliers, partial: leave out poses this many robust σ above the others
-        (:mod:`pincal.identify.outliers`);
-            fit what the data identifies when varied poses would identify more.
+            (:mod:`pincal.identify.outliers`); fit what the data identifies when varied poses
+            would identify more.
         payload, progress: a tip load, for gravity torques; ``progress(done, total, label)``.
         folds, seed: K and seed of the cross-validation of ``extension="auto"`` and ``nested``.
         nested: judge the whole call by K-fold cross-validation: True, False or None (when cheap).
