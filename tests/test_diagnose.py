@@ -24,6 +24,7 @@ import pytest
 import pincal
 import pincal.auto.diagnose
 import pincal.kinematics.effects
+import pincal.kinematics.mdh
 from pincal.auto.diagnose import Diagnosis, diagnose
 from pincal.cli import main
 from pincal.kinematics.effects import EFFECTS, Extension, candidates
@@ -329,7 +330,7 @@ def test_extension_jacobian_matches_finite_differences(get_robot, name: str, lab
     rng = np.random.default_rng(17)
     pin.seed(17)  # SE3.Random draws from Eigen's generator
     ext = Extension.parse(robot, label)
-    model = pincal.kinematics.models.make_model(kind, robot)
+    model = pincal.kinematics.mdh.make_model(kind, robot)
     measurement = pincal.identify.measurements.Measurement(
         "position", instrument_T_base=pin.SE3.Random(), tool=pin.SE3.Random()
     )

@@ -35,6 +35,7 @@ import pinocchio as pin
 import pytest
 
 import pincal
+import pincal.kinematics.mdh
 import pincal.simulation.truth
 from pincal.auto.diagnose import diagnose
 from pincal.cli import main
@@ -189,7 +190,7 @@ def _points_problem(
         point_distances=DISTANCES if known else (),
     )
     problem = pincal.identify.measurements.Problem(
-        pincal.kinematics.models.make_model(kind, robot), measurement, data, ext
+        pincal.kinematics.mdh.make_model(kind, robot), measurement, data, ext
     )
     theta = problem.initial_theta()  # the points at their rows' mean, the tool at the truth's
     n_geo, n_model = problem.model.n_params, problem.n_model
@@ -510,7 +511,7 @@ def _reported_model(
     """The reported model's tip rotations and positions [m] at ``q`` and its tool [m], rebuilt
     from the report's parameters (mm, mrad)."""
     values = {row["name"]: row["value"] * 1e-3 for row in report["parameters"]}
-    model = pincal.kinematics.models.make_model(report["model"], robot)
+    model = pincal.kinematics.mdh.make_model(report["model"], robot)
     frames = forward(model.chain(np.array([values[n] for n in model.names])), q)
     return frames.tip_rotation, frames.tip_translation, np.array([values[f"tool.{c}"] for c in "xyz"])
 

@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 
 import pincal
+import pincal.kinematics.mdh
 from pincal.kinematics.mdh import PARALLEL_TOL
 
 COMPONENTS = ("tx", "ty", "tz")
@@ -229,7 +230,7 @@ def test_offset_of_never_moving_middle_joint(experiment, frozen: int) -> None:
 
 
 def test_mdh_holds_beta_on_ur5_non_parallel_axes(get_robot) -> None:
-    model = pincal.kinematics.models.make_model("mdh", get_robot("ur5"))
+    model = pincal.kinematics.mdh.make_model("mdh", get_robot("ur5"))
     for joint in ("shoulder_lift_joint", "wrist_2_joint", "wrist_3_joint"):
         assert f"{joint}.beta" in model.held
     for joint in ("shoulder_pan_joint", "elbow_joint", "wrist_1_joint"):
@@ -240,7 +241,7 @@ def test_mdh_holds_beta_on_ur5_non_parallel_axes(get_robot) -> None:
 @pytest.mark.parametrize("name", ["ur5", "ur10", "panda", "z1", "mrres5", "zu3"])
 def test_mdh_holds_beta_exactly_where_axes_are_not_parallel(get_robot, name: str) -> None:
     robot = get_robot(name)
-    model = pincal.kinematics.models.make_model("mdh", robot)
+    model = pincal.kinematics.mdh.make_model("mdh", robot)
     w = pincal.kinematics.twists.nominal_twists(robot).twists[:, 3:]
     for j, joint in enumerate(robot.joint_names):
         angle = 0.0 if j == 0 else float(np.arcsin(min(1.0, np.linalg.norm(np.cross(w[j - 1], w[j])))))

@@ -22,6 +22,7 @@ import pytest
 from finite_differences import tip_jacobian_fd
 
 import pincal
+import pincal.kinematics.mdh
 from pincal.kinematics.chain import skew
 
 ROBOTS = ("ur5", "ur10", "panda", "z1", "mrres5", "zu3")
@@ -57,7 +58,7 @@ def relative_error(jac: np.ndarray, jac_fd: np.ndarray) -> float:
 @pytest.mark.parametrize("name", ROBOTS)
 def test_model_at_zero_is_pinocchio(get_robot, name: str, kind: str) -> None:
     robot = get_robot(name)
-    model = pincal.kinematics.models.make_model(kind, robot)
+    model = pincal.kinematics.mdh.make_model(kind, robot)
     configurations = robot.random_configurations(30, np.random.default_rng(7))
     frames = pincal.kinematics.chain.forward(model.chain(np.zeros(model.n_params)), configurations)
     rot_ref, pos_ref = pinocchio_tips(robot, configurations)
@@ -69,7 +70,7 @@ def test_model_at_zero_is_pinocchio(get_robot, name: str, kind: str) -> None:
 def test_placements_equal_edited_pinocchio_model(get_robot, name: str) -> None:
     """``C_j = C⁰_j exp(δ_j)`` is Pinocchio's ``jointPlacements[j] * exp6(δ_j)``."""
     robot = get_robot(name)
-    model = pincal.kinematics.models.make_model("placements", robot)
+    model = pincal.kinematics.mdh.make_model("placements", robot)
     rng = np.random.default_rng(11)
     x = rng.normal(0.0, 0.05, model.n_params)
     edited = pin.Model(robot.model)
@@ -96,7 +97,7 @@ def test_placements_equal_edited_pinocchio_model(get_robot, name: str) -> None:
 @pytest.mark.parametrize("name", JACOBIAN_ROBOTS)
 def test_tip_jacobian_matches_finite_differences(get_robot, name: str, kind: str) -> None:
     robot = get_robot(name)
-    model = pincal.kinematics.models.make_model(kind, robot)
+    model = pincal.kinematics.mdh.make_model(kind, robot)
     rng = np.random.default_rng(3)
     x = rng.normal(0.0, 0.01, model.n_params)
     configurations = robot.random_configurations(8, rng)
@@ -117,7 +118,7 @@ def make_problem(
     """
     rng = np.random.default_rng(seed)
     pin.seed(seed)  # SE3.Random draws from Eigen's generator
-    model = pincal.kinematics.models.make_model(kind, robot)
+    model = pincal.kinematics.mdh.make_model(kind, robot)
     measurement = pincal.identify.measurements.Measurement(
         measure, instrument_T_base=pin.SE3.Random(), tool=pin.SE3.Random()
     )
@@ -202,7 +203,7 @@ def test_position_residual_joint_derivative_equals_pinocchio(get_robot, name: st
     configurations = robot.random_configurations(n_poses, rng)
     data = pincal.Dataset(robot.joint_names, configurations, rng.normal(size=(n_poses, 3)))
     problem = pincal.identify.measurements.Problem(
-        pincal.kinematics.models.make_model("offsets", robot), measurement, data
+        pincal.kinematics.mdh.make_model("offsets", robot), measurement, data
     )
     theta = problem.initial_theta()
     assert np.allclose(theta[n:], point) and not np.any(theta[:n])

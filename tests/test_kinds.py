@@ -16,6 +16,7 @@ import pytest
 
 import pincal
 import pincal.identify.kinds
+import pincal.kinematics.mdh
 from pincal.identify.kinds import KINDS, MeasurementKind, get_kind
 from pincal.options import MEASURES
 
@@ -32,7 +33,7 @@ def make_problem(
     one known distance between them."""
     rng = np.random.default_rng(seed)
     pin.seed(seed)
-    model = pincal.kinematics.models.make_model("placements", robot)
+    model = pincal.kinematics.mdh.make_model("placements", robot)
     q = robot.random_configurations(N_POSES, rng)
     labels = np.repeat([0, 1], N_POSES // 2)
     names = ("a", "b") if measure == "points" else ()

@@ -15,6 +15,7 @@ import pinocchio as pin
 import pytest
 
 import pincal
+import pincal.kinematics.mdh
 
 #: Zhang et al., held-out position error [mm] before and after: (mean, max, std).
 ZHANG_POSITION_MM = {"before": (1.4980, 1.8024, 0.1995), "after": (0.1364, 0.2137, 0.0557)}
@@ -48,7 +49,7 @@ def test_gao2013_distance_calibration_cross_validated() -> None:
 def _zhang_truth(robot: pincal.Robot, seed: int = 0) -> pincal.simulation.truth.TrueRobot:
     """Zhang et al.'s simulated errors: every free MDH parameter off by a random sign times
     U(0.1, 0.5) mm (lengths) or U(0.5, 2) mrad (angles); base, instrument and tool exact."""
-    model = pincal.kinematics.models.make_model("mdh", robot)
+    model = pincal.kinematics.mdh.make_model("mdh", robot)
     rng = np.random.default_rng(seed)
     x = np.zeros(model.n_params)
     for i, (name, unit) in enumerate(zip(model.names, model.units)):

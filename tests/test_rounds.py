@@ -27,6 +27,7 @@ from finite_differences import tip_jacobian_fd
 from lxml import etree
 
 import pincal
+import pincal.kinematics.mdh
 from pincal.kinematics.mdh import PARALLEL_TOL
 
 ROBOTS = ("ur5", "panda", "zu3")
@@ -110,9 +111,9 @@ def test_mdh_table_of_a_calibrated_urdf_uses_beta(get_robot: GetRobot, tmp_path:
         tmp_path: a fresh folder.
         name: the bundled robot.
     """
-    nominal = pincal.kinematics.models.make_model("mdh", get_robot(name)).table
+    nominal = pincal.kinematics.mdh.make_model("mdh", get_robot(name)).table
     robot = _nearly_parallel_robot(get_robot, tmp_path, name)
-    model = pincal.kinematics.models.make_model("mdh", robot)
+    model = pincal.kinematics.mdh.make_model("mdh", robot)
     table = model.table
     assert np.array_equal(table.parallel, nominal.parallel)
     assert np.abs(nominal.beta).max() <= 1e-12  # exactly parallel axes: no tilt
@@ -157,7 +158,7 @@ def test_factory_style_urdf_stays_exact(get_robot: GetRobot, tmp_path: Path, mod
     path = tmp_path / "zu3_factory.urdf"
     tree.write(str(path))
     robot = pincal.load_robot(str(path), tip=source.tip)
-    mdh = pincal.kinematics.models.make_model("mdh", robot)
+    mdh = pincal.kinematics.mdh.make_model("mdh", robot)
     assert np.abs(mdh.table.beta).max() > 0.01
     q = robot.random_configurations(30, np.random.default_rng(6))
     frames = pincal.kinematics.chain.forward(mdh.chain(np.zeros(mdh.n_params)), q)
@@ -174,7 +175,7 @@ def test_mdh_jacobian_with_nominal_beta(get_robot: GetRobot, tmp_path: Path) -> 
         tmp_path: a fresh folder.
     """
     robot = _nearly_parallel_robot(get_robot, tmp_path, "zu3")
-    model = pincal.kinematics.models.make_model("mdh", robot)
+    model = pincal.kinematics.mdh.make_model("mdh", robot)
     rng = np.random.default_rng(4)
     x = rng.normal(0.0, 1e-3, model.n_params)
     q = robot.random_configurations(5, rng)
