@@ -33,6 +33,7 @@ if TYPE_CHECKING:  # for type checkers (``as``: re-exported); at run time each l
     from .auto.diagnose import Diagnosis as Diagnosis
     from .auto.diagnose import diagnose as diagnose
     from .auto.pipeline import calibrate as calibrate
+    from .auto.settings import CalibrateOptions as CalibrateOptions
     from .data.dataset import Dataset as Dataset
     from .data.dataset import read_csv as read_csv
     from .data.dataset import write_csv as write_csv
@@ -68,6 +69,7 @@ _LAZY: dict[str, str] = {
     "Diagnosis": "auto.diagnose",
     "diagnose": "auto.diagnose",
     "calibrate": "auto.pipeline",
+    "CalibrateOptions": "auto.settings",
     "Dataset": "data.dataset",
     "read_csv": "data.dataset",
     "write_csv": "data.dataset",

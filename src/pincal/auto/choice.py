@@ -25,12 +25,13 @@ from typing import Any
 import numpy as np
 
 from pincal.auto.diagnosis import Diagnosis, diagnose_with
+from pincal.auto.settings import CalibrateOptions
 from pincal.errors import IdentifiabilityError
 from pincal.identify.calibration import Calibration
 from pincal.identify.forward_selection import Selection, select_on
 from pincal.identify.kfold import CrossValidation, Fit
 from pincal.identify.solver import Setup, set_up
-from pincal.kinematics.effects import Extension, Payload
+from pincal.kinematics.effects import Extension
 
 #: Rounds of selection and diagnosis for ``extension="auto"``.
 MAX_ROUNDS = 3
@@ -187,11 +188,7 @@ def choose(
     extension: Extension | str | None,
     *,
     fit: Fit,
-    folds: int = 5,
-    seed: int = 0,
-    payload: Payload | None = None,
-    options: dict[str, Any],
-    fit_options: dict[str, Any],
+    options: CalibrateOptions,
     progress: Callable[[int, int, str], None] | None = None,
     start: np.ndarray | None = None,
 ) -> ModelChoice:
@@ -202,14 +199,12 @@ def choose(
         wanted: ``"auto"``, None (every parameter) or the names.
         extension: ``"auto"``, an :class:`Extension` or None.
         fit: the calibration the diagnosis fits with (:func:`pincal.calibrate`).
-        folds: K of the diagnosis' cross-validation.
-        seed: seed of its folds.
-        payload: a load on the tip, for the gravity torques of the candidates.
-        options: the measurement set-up (:data:`pincal.identify.solver.SETUP_KEYS`).
-        fit_options: loss, f_scale, rcond, partial of :func:`pincal.calibrate`.
+        options: the call's options: its set-up and fit, and the diagnosis' folds, seed and
+            payload (the load on the tip, for the gravity torques of the candidates).
         progress: called as ``progress(done, total, label)`` by the diagnosis.
         start: the fit of the registration, tool and extension alone, if already known.
     """
+    folds, seed = options.folds, options.seed
     params, sel = _select(setup, wanted, start)
     mode = "auto" if wanted == "auto" else "all" if wanted is None else "given"
     ext_mode = "auto" if extension == "auto" else "none" if extension is None else "given"
@@ -231,12 +226,12 @@ def choose(
                 measure,
                 folds,
                 seed,
-                payload=payload,
+                payload=options.payload,
                 progress=progress,
                 quick=True,
                 params=None if params is None else list(params),
-                **options,
-                **fit_options,
+                **options.setup(),
+                **options.fitting(),
             )
         except IdentifiabilityError as exc:  # a fold too small to fit: the geometry alone, said so
             if rounds:
@@ -252,7 +247,7 @@ def choose(
         if named is None or wanted != "auto" or (cause is not None and label == cause.label):
             break
         cause = named
-        params, sel = _select(set_up(robot, data, model, measure, extension=cause, **options), wanted)
+        params, sel = _select(set_up(robot, data, model, measure, extension=cause, **options.setup()), wanted)
     if kept is None:
         return replace(base, diagnosis=diag, rounds=tuple(rounds))
     return replace(kept[1], rounds=tuple(rounds))
