@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from pincal.cli.common import check_outputs, robot_options, urdf_path, warn
+from pincal.cli.common import check_outputs, end_progress, progress_line, robot_options, urdf_path, warn
 from pincal.data.checks import check_limits
 from pincal.data.dataset import UNITS, Dataset, read_joints
 from pincal.errors import DataError
@@ -36,6 +36,7 @@ def run(args: argparse.Namespace) -> int:
         return None if value is None else value * scale
 
     points = args.measure == "points"
+    progress = progress_line("planning")
     plan = plan_poses(
         robot,
         args.poses,
@@ -53,7 +54,9 @@ def run(args: argparse.Namespace) -> int:
         clearance=CLEARANCE if args.clearance is None else args.clearance * scale,
         reach=length(args.reach),
         instrument=length(args.instrument) if args.reach is not None else None,
+        progress=progress,
     )
+    end_progress(progress)
     print(plan.summary())
     for text in plan.warnings:
         warn(args, text)

@@ -26,6 +26,7 @@ poses is left out (:func:`safe_poses`) is made, with a warning.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -173,6 +174,7 @@ def plan_poses(
     clearance: float = 0.05,
     reach: float | None = None,
     instrument: np.ndarray | None = None,
+    progress: Callable[[int, int, str], None] | None = None,
 ) -> Plan:
     """Choose ``n_poses`` measurement poses among ``candidates`` feasible ones.
 
@@ -199,6 +201,8 @@ def plan_poses(
         rotation_weight: weight of orientation residuals [m/rad] (pose data).
         n_test: random task poses when ``task`` is not given.
         margin, clearance, reach, instrument: the feasible set, see :func:`candidate_poses`.
+        progress: called as ``progress(done, 4, stage)`` after each stage (candidates,
+            identification rows, choice, local refinement).
 
     Raises:
         DataError: unknown measure or criterion, too few feasible candidates, no sockets or one out of reach.
@@ -211,7 +215,9 @@ def plan_poses(
     tolerance = (0.01 if tool is not None else 0.1) if tool_tolerance is None else tool_tolerance
     tools = tool_hypotheses(tool, tolerance)
     where = Feasible(margin, clearance, point, instrument, reach)
+    told = progress or (lambda done, total, stage: None)
     cand, labels = _candidates(robot, candidates, seed, sockets, where)
+    told(1, 4, f"{len(cand)} feasible candidates")
     if task is None:
         task = candidate_poses(robot, n_test, seed + 1, margin, 0.0, clearance, point, instrument, reach)
     ext = Extension.parse(robot, extension) if isinstance(extension, str) else extension
@@ -221,8 +227,11 @@ def plan_poses(
     warnings, drawn = _check_equations(measure, n_poses, int(info.free.sum())), len(cand)  # before moves
     weights = info.task_weights(np.atleast_2d(task), tools)
     rows, priors = info.candidate_rows, info.priors
+    told(2, 4, "identification rows")
     chosen = exchange(criterion, rows, len(cand), greedy(rows, len(cand), n_poses, priors), priors, weights)
+    told(3, 4, f"{n_poses} poses chosen")
     cand, chosen = _refine(info, tools, criterion, weights, cand, chosen, where, seed)
+    told(4, 4, "refined")
     names, units = (tuple(x for x, f in zip(v, info.free) if f) for v in (info.names, info.units))
     at = (None, None) if labels is None else (labels[chosen], labels[:n_poses])
     w = weights[info.best]  # the predictions' hypothesis, whose weights are already made
