@@ -27,8 +27,10 @@ from pincal.data.dataset import read_table
 from pincal.kinematics.chain import Chain, forward
 from pincal.planning.candidates import perturbed
 from pincal.planning.design import _change, exchange, greedy, information, loss, swap
+from pincal.planning.equations import independent_equations as _equations
+from pincal.planning.equations import safe_poses
 from pincal.planning.information import Information
-from pincal.planning.plan import _design, _equations, candidate_poses, plan_poses, safe_poses, write_poses
+from pincal.planning.plan import _design, candidate_poses, plan_poses, write_poses
 
 SEEDS = range(10)
 

@@ -232,3 +232,23 @@ def get_kind(name: str) -> MeasurementKind:
         return KINDS[name]
     except (KeyError, TypeError):
         raise DataError(f"unknown measure {name!r}: choose one of {', '.join(KINDS)}") from None
+
+
+def check_options(
+    kind: MeasurementKind, data: Dataset, pairs: object, point_distances: tuple[object, ...]
+) -> None:
+    """Refuse data and options that ``kind`` has no use for: fixed points without a point column,
+    known point distances for another kind, named or given pose pairs for another than distances.
+
+    Raises:
+        DataError: what is wrong, and what to give instead.
+    """
+    if kind.fixed_points and data.labels is None:
+        raise DataError("--measure points needs a point column naming the fixed point of each row")
+    if point_distances and not kind.fixed_points:
+        raise DataError(
+            f"--point-distance is for --measure points (fixed-point data), not for {kind.name} data"
+        )
+    if not (isinstance(pairs, str) and pairs == "all") and not kind.by_pairs:
+        named = pairs if isinstance(pairs, str) else "(an array)"
+        raise DataError(f"--pairs {named} is for --measure distance, not for {kind.name} data")

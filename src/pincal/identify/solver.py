@@ -36,8 +36,9 @@ from pincal.identify.calibration import Calibration
 from pincal.identify.evaluation import evaluate
 from pincal.identify.fixed_points import PointDistance, blind_jacobian, gauge_reasons, placed_distances
 from pincal.identify.identifiability import RCOND, Identifiability, analyse, check_rank, parameter_scale
+from pincal.identify.kinds import check_options, get_kind
 from pincal.identify.lm import levenberg_marquardt
-from pincal.identify.measurements import ROTATION_WEIGHT, Measurement, Problem, get_kind
+from pincal.identify.measurements import ROTATION_WEIGHT, Measurement, Problem
 from pincal.identify.outliers import find_outliers
 from pincal.identify.registration import initial_measurement
 from pincal.kinematics.chain import Chain, forward
@@ -139,13 +140,7 @@ def set_up(
         else pin.SE3(np.eye(3), np.zeros(3) if tool is None else np.asarray(tool, float))
     )
     kind = measure or data.measured
-    if get_kind(kind).fixed_points and data.labels is None:
-        raise DataError("--measure points needs a point column naming the fixed point of each row")
-    if point_distances and not get_kind(kind).fixed_points:
-        raise DataError(f"--point-distance is for --measure points (fixed-point data), not for {kind} data")
-    if not (isinstance(pairs, str) and pairs == "all") and not get_kind(kind).by_pairs:
-        named = pairs if isinstance(pairs, str) else "(an array)"
-        raise DataError(f"--pairs {named} is for --measure distance, not for {kind} data")
+    check_options(get_kind(kind), data, pairs, point_distances)
     measurement = Measurement(
         kind=kind,
         instrument_T_base=instrument_T_base or pin.SE3.Identity(),

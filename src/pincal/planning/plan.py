@@ -25,14 +25,13 @@ poses is left out (:func:`safe_poses`) is made, with a warning.
 
 from __future__ import annotations
 
-import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from pincal.errors import DataError, IdentifiabilityError
+from pincal.errors import DataError
 from pincal.files import atomic_write
 from pincal.identify.fixed_points import PointDistance
 from pincal.identify.kinds import get_kind
@@ -40,6 +39,7 @@ from pincal.identify.measurements import ROTATION_WEIGHT
 from pincal.kinematics.effects import Extension
 from pincal.planning.candidates import candidate_poses, check_memory, perturbed, socket_candidates
 from pincal.planning.design import CRITERIA, exchange, greedy, swap
+from pincal.planning.equations import check_equations
 from pincal.planning.information import Information, tool_hypotheses
 from pincal.robot.robots import Robot
 from pincal.threads import limited
@@ -151,6 +151,10 @@ def _design(info: Information, q: np.ndarray, labels: np.ndarray | None, weight:
 
 
 @limited
+def _quiet(done: int, total: int, stage: str) -> None:
+    """No progress shown."""
+
+
 def plan_poses(
     robot: Robot,
     n_poses: int,
@@ -188,10 +192,9 @@ def plan_poses(
         candidates: number of random feasible candidates.
         seed: seed of the candidates (the default task poses use ``seed + 1``).
         tool: the measured point on the tip (3,) [m], as roughly known (default: the tip's origin).
-        tool_tolerance: how far the real point may be from ``tool`` [m] (default: 0.01 when
-            ``tool`` is given, else 0.1 from the tip's origin); the plan is judged on the guess
-            and 4 points this far around it (:func:`pincal.planning.information.tool_hypotheses`), its
-            predictions on the one that identifies most (``Information.guess``).
+        tool_tolerance: how far the real point may be from ``tool`` [m] (default 0.01, or 0.1 from
+            the tip's origin): the plan is judged on 4 points this far around the guess and
+            predicted on the one that identifies most (``Information.guess``).
         task: (T, n) the poses the robot will work in [rad or m] (default: ``n_test`` random
             feasible poses, the whole workspace).
         sockets: (K, 3) where the fixed points are, roughly, in the base frame [m] (``points``).
@@ -201,43 +204,51 @@ def plan_poses(
         rotation_weight: weight of orientation residuals [m/rad] (pose data).
         n_test: random task poses when ``task`` is not given.
         margin, clearance, reach, instrument: the feasible set, see :func:`candidate_poses`.
-        progress: called as ``progress(done, 4, stage)`` after each stage (candidates,
-            identification rows, choice, local refinement).
+        progress: called as ``progress(done, 2, stage)``: the candidates, then the choice.
 
     Raises:
         DataError: unknown measure or criterion, too few feasible candidates, no sockets or one out of reach.
-        IdentifiabilityError: no more independent equations than identifiable parameters (too few
-            to spare is said in ``Plan.warnings``, see :func:`safe_poses`).
+        IdentifiabilityError: too few independent equations (:mod:`pincal.planning.equations`).
     """
-    _check(measure, criterion, n_poses, candidates, sockets)
-    check_memory(robot, candidates, measure, n_poses)
-    point = np.zeros(3) if tool is None else np.asarray(tool, float)
-    tolerance = (0.01 if tool is not None else 0.1) if tool_tolerance is None else tool_tolerance
-    tools = tool_hypotheses(tool, tolerance)
-    where = Feasible(margin, clearance, point, instrument, reach)
-    told = progress or (lambda done, total, stage: None)
+    _check(robot, measure, criterion, (n_poses, candidates), sockets)
+    told = progress or _quiet
+    tools = _hypotheses(tool, tool_tolerance)
+    where = Feasible.around(tool, margin, clearance, instrument, reach)
     cand, labels = _candidates(robot, candidates, seed, sockets, where)
-    told(1, 4, f"{len(cand)} feasible candidates")
+    told(1, 2, f"{len(cand)} feasible candidates")
     if task is None:
-        task = candidate_poses(robot, n_test, seed + 1, margin, 0.0, clearance, point, instrument, reach)
+        task = candidate_poses(
+            robot, n_test, seed + 1, margin, 0.0, clearance, where.point, instrument, reach
+        )
     ext = Extension.parse(robot, extension) if isinstance(extension, str) else extension
     info = Information(
         robot, model, measure, cand, tools, ext, noise, rot_noise, rotation_weight, labels, point_distances
     )
-    warnings, drawn = _check_equations(measure, n_poses, int(info.free.sum())), len(cand)  # before moves
+    warnings, drawn = check_equations(measure, n_poses, int(info.free.sum())), len(cand)  # before moves
     weights = info.task_weights(np.atleast_2d(task), tools)
-    rows, priors = info.candidate_rows, info.priors
-    told(2, 4, "identification rows")
-    chosen = exchange(criterion, rows, len(cand), greedy(rows, len(cand), n_poses, priors), priors, weights)
-    told(3, 4, f"{n_poses} poses chosen")
+    chosen = _choose(info, criterion, weights, len(cand), n_poses)
     cand, chosen = _refine(info, tools, criterion, weights, cand, chosen, where, seed)
-    told(4, 4, "refined")
+    told(2, 2, f"{n_poses} poses chosen and refined")
     names, units = (tuple(x for x, f in zip(v, info.free) if f) for v in (info.names, info.units))
     at = (None, None) if labels is None else (labels[chosen], labels[:n_poses])
     w = weights[info.best]  # the predictions' hypothesis, whose weights are already made
     planned, random = _design(info, cand[chosen], at[0], w), _design(info, cand[:n_poses], at[1], w)
     what = (robot, model, measure, criterion, names, units, cand, np.array(chosen), planned, random)
     return Plan(*what, sockets=at[0], drawn=drawn, warnings=warnings)
+
+
+def _hypotheses(tool: np.ndarray | None, tolerance: float | None) -> list[np.ndarray]:
+    """The measured points a plan is judged on: the guess and points ``tolerance`` [m] around it
+    (0.01 m when the tool is given, else 0.1 m from the tip's origin)."""
+    return tool_hypotheses(tool, (0.01 if tool is not None else 0.1) if tolerance is None else tolerance)
+
+
+def _choose(
+    info: Information, criterion: str, weights: Sequence[np.ndarray], n_cand: int, n_poses: int
+) -> list[int]:
+    """``n_poses`` of the ``n_cand`` candidates: greedy, then exchanges (:mod:`pincal.planning.design`)."""
+    rows, priors = info.candidate_rows, info.priors
+    return exchange(criterion, rows, n_cand, greedy(rows, n_cand, n_poses, priors), priors, weights)
 
 
 @dataclass(frozen=True)
@@ -249,6 +260,19 @@ class Feasible:
     point: np.ndarray
     instrument: np.ndarray | None
     reach: float | None
+
+    @classmethod
+    def around(
+        cls,
+        tool: np.ndarray | None,
+        margin: float,
+        clearance: float,
+        instrument: np.ndarray | None,
+        reach: float | None,
+    ) -> Feasible:
+        """The feasible set for the measured point ``tool`` (default: the tip's origin)."""
+        point = np.zeros(3) if tool is None else np.asarray(tool, float)
+        return cls(margin, clearance, point, instrument, reach)
 
 
 #: Local refinement: the steps of the moves of each pose (fractions of each joint's range) and
@@ -295,8 +319,12 @@ def _candidates(
     return candidate_poses(robot, n, seed, w.margin, 0.0, w.clearance, w.point, w.instrument, w.reach), None
 
 
-def _check(measure: str, criterion: str, n_poses: int, candidates: int, sockets: np.ndarray | None) -> None:
-    """Refuse what cannot be planned, with what to do."""
+def _check(
+    robot: Robot, measure: str, criterion: str, sizes: tuple[int, int], sockets: np.ndarray | None
+) -> None:
+    """Refuse what cannot be planned (``sizes``: poses and candidates), with what to do, or
+    what needs more memory than the machine has."""
+    n_poses, candidates = sizes
     kind = get_kind(measure)  # a DataError naming the kinds if there is none of that name
     if criterion not in CRITERIA:
         raise DataError(f"unknown criterion {criterion!r}: choose one of {', '.join(CRITERIA)}")
@@ -304,47 +332,7 @@ def _check(measure: str, criterion: str, n_poses: int, candidates: int, sockets:
         raise DataError("planning fixed-point data needs where the sockets are: --sockets X,Y,Z;X,Y,Z")
     if not 0 < n_poses <= candidates:
         raise DataError(f"--poses {n_poses} must be between 1 and the number of candidates ({candidates})")
-
-
-def _equations(measure: str, n_poses: int) -> int:
-    """Independent equations of ``n_poses`` poses: 3 or 6 each, and for distances between N
-    points at most their 3N - 6 coordinates up to a rigid motion (and at most N(N-1)/2 pairs)."""
-    kind = get_kind(measure)
-    if kind.by_pairs:
-        return max(0, min(3 * n_poses - 6, n_poses * (n_poses - 1) // 2))
-    return n_poses * kind.width
-
-
-#: The share of the poses a calibration may fit without: ``calibrate``'s cross-validation
-#: (``--extend auto``, 5 folds) fits on four fifths of them, and its outlier screen drops some.
-SPARE_SHARE = 0.2
-
-
-def safe_poses(measure: str, n_free: int) -> int:
-    """The fewest poses that leave more independent equations than ``n_free`` identifiable
-    parameters after a fifth of them (rounded up, at least one pose) is left out: about 1.25
-    times as many equations as parameters, and at least a pose's equations to spare."""
-    n = 1
-    while _equations(measure, n - math.ceil(SPARE_SHARE * n)) <= n_free:
-        n += 1
-    return n
-
-
-def _check_equations(measure: str, n_poses: int, n_free: int) -> tuple[str, ...]:
-    """Refuse a plan with no more independent equations than identifiable parameters; warn of
-    one with too few to spare (:func:`safe_poses`), which the calibration refuses, or cannot
-    cross-validate, once an outlier or a fold is left out. Returns the warnings."""
-    equations, need = _equations(measure, n_poses), safe_poses(measure, n_free)
-    said = f"{n_poses} poses give {equations} independent equations for {n_free} identifiable parameters"
-    if equations <= n_free:
-        least = next(n for n in range(n_poses, need + 1) if _equations(measure, n) > n_free)
-        raise IdentifiabilityError(f"{said}: plan more poses (at least {least}; {need} for a safe margin)")
-    if n_poses >= need:
-        return ()
-    return (
-        f"{said}, a thin margin: calibrate refuses them if it leaves out an outlier or a "
-        f"cross-validation fold; plan {need} poses or more for a safe margin",
-    )
+    check_memory(robot, candidates, measure, n_poses)
 
 
 def write_poses(path: str | Path, plan: Plan, degrees: bool = False, units: str = "m") -> None:
