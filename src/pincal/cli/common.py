@@ -13,7 +13,6 @@ from typing import TYPE_CHECKING, Any
 import pinocchio as pin
 
 from pincal.cli.data_options import check_lock
-from pincal.cli.past_tip import check_past_tip
 from pincal.cli.recording_data import recording_data, unused_recording_options
 from pincal.data.checks import check_columns, check_limits, check_scale, small_angles
 from pincal.data.dataset import UNITS, Dataset, csv_columns, read_csv
@@ -26,6 +25,7 @@ from pincal.identify.kinds import get_kind
 from pincal.inputs import input_named
 from pincal.options import ROTATION_WEIGHT
 from pincal.plausibility.judge import Verdict, judge_calibration
+from pincal.plausibility.past_tip import Reading, check_past_tip
 from pincal.robot.robots import BUNDLED, Robot, bundled_urdf, load_robot
 
 if TYPE_CHECKING:
@@ -178,7 +178,10 @@ def load_data(path: Path, robot: Robot, args: argparse.Namespace) -> Dataset:
     if data.labels is None:  # fixed points have no measured positions to compare
         check_scale(robot, data, args.units, args.degrees)
         if not is_recording(path):  # past-tip columns are a CSV's
-            check_past_tip(robot, data, path, args, robot_options(args))
+            reading = Reading(
+                args.measure, args.degrees, args.units, args.rotation_weight, robot_options(args)
+            )
+            check_past_tip(robot, data, path, reading)
     elif args.degrees and small_angles(robot, data):
         warn(
             args,

@@ -10,8 +10,8 @@ explain the data (a gripper's fingers) are kept and ignored, as before.
 
 from __future__ import annotations
 
-import argparse
 import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -20,6 +20,7 @@ import numpy as np
 from pincal.data.dataset import Dataset, csv_columns, read_csv
 from pincal.errors import DataError, PincalError
 from pincal.identify.evaluation import evaluate
+from pincal.identify.measurements import ROTATION_WEIGHT
 from pincal.identify.solver import register, set_up
 from pincal.plausibility.readings import IMPROVEMENT, WITHIN
 from pincal.plausibility.verdict import robot_size, score_mm
@@ -49,20 +50,36 @@ def joints_after(urdf_text: str, tip: str) -> list[tuple[str, str]]:
     return found
 
 
-def check_past_tip(
-    robot: Robot, data: Dataset, path: Path, args: argparse.Namespace, options: dict[str, Any]
-) -> None:
+@dataclass(frozen=True)
+class Reading:
+    """How a measurement CSV was read: what :func:`check_past_tip` reads it again with.
+
+    Attributes:
+        measure: the measurement kind asked for (None: by the columns).
+        degrees: revolute joints in degrees.
+        units: ``m`` or ``mm`` for lengths.
+        rotation_weight: weight of orientation residuals [m/rad] (pose data).
+        robot_options: :func:`pincal.load_robot`'s keyword arguments for the robot file.
+    """
+
+    measure: str | None = None
+    degrees: bool = False
+    units: str = "m"
+    rotation_weight: float = ROTATION_WEIGHT
+    robot_options: dict[str, Any] = field(default_factory=dict)
+
+
+def check_past_tip(robot: Robot, data: Dataset, path: Path, reading: Reading = Reading()) -> None:
     """Refuse data measured after joints past ``robot.tip`` (see the module docstring).
 
     Args:
         robot: the chain to the tip; data: its dataset read from ``path``.
-        args: the command's options (units, degrees, measure, quaternion order, lock).
-        options: :func:`pincal.load_robot`'s keyword arguments for the robot file.
+        reading: how the file was read.
 
     Raises:
         DataError: columns past the tip move and a tip after them fits the data far better.
     """
-    if data.labels is not None or args.measure not in (None, "position", "pose"):
+    if data.labels is not None or reading.measure not in (None, "position", "pose"):
         return
     header = set(csv_columns(path))
     past = [(j, link) for j, link in joints_after(robot.urdf_text, robot.tip) if j in header]
@@ -70,17 +87,23 @@ def check_past_tip(
         return
     tip = past[-1][1]  # the deepest: after every column past the tip when they are on one path
     try:
-        deeper = load_robot(robot.name, tip=tip, **options)
+        deeper = load_robot(robot.name, tip=tip, **reading.robot_options)
         if not {j for j, _ in past} <= set(deeper.joint_names):
             return  # on branches: no one frame comes after all of them
         joints = [*robot.joint_names, *(j for j, _ in past)]
-        deeper = load_robot(robot.name, tip=tip, joints=joints, **options)
-        kwargs = {"degrees": args.degrees, "units": args.units, "prismatic": deeper.prismatic}
-        extra = read_csv(path, deeper.joint_names, measure=args.measure, **kwargs)
+        deeper = load_robot(robot.name, tip=tip, joints=joints, **reading.robot_options)
+        extra = read_csv(
+            path,
+            deeper.joint_names,
+            degrees=reading.degrees,
+            units=reading.units,
+            prismatic=deeper.prismatic,
+            measure=reading.measure,
+        )
         moved = np.ptp(extra.q[:, robot.n_joints :], axis=0)
         if not np.any(moved > 1e-9):
             return
-        here, there = _nominal_mm(robot, data, args), _nominal_mm(deeper, extra, args)
+        here, there = _nominal_mm(robot, data, reading), _nominal_mm(deeper, extra, reading)
     except (PincalError, np.linalg.LinAlgError, ValueError):
         return
     if here >= IMPROVEMENT * there and there * 1e-3 <= WITHIN * robot_size(deeper):
@@ -92,8 +115,9 @@ def check_past_tip(
         )
 
 
-def _nominal_mm(robot: Robot, data: Dataset, args: argparse.Namespace) -> float:
+def _nominal_mm(robot: Robot, data: Dataset, reading: Reading) -> float:
     """The nominal robot's error [mm] on the data, registration and tool fitted."""
-    setup = set_up(robot, data, "placements", args.measure, rotation_weight=args.rotation_weight)
+    weight = reading.rotation_weight
+    setup = set_up(robot, data, "placements", reading.measure, rotation_weight=weight)
     theta = register(setup)
-    return score_mm(evaluate(setup.model, setup.problem.measurement, theta, data), args.rotation_weight)
+    return score_mm(evaluate(setup.model, setup.problem.measurement, theta, data), weight)
