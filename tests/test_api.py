@@ -55,3 +55,21 @@ def test_options_are_checked_where_given() -> None:
         CalibrateOptions(deliver="both")
     with pytest.raises(pincal.DataError, match="params='some'"):
         CalibrateOptions(params="some").wanted()
+
+
+@pytest.mark.parametrize(
+    ("library", "command"),
+    [
+        ("measure=points needs a point column", "--measure points needs a point column"),
+        ("point_distances='A,B': a point's distance to itself is 0", "--point-distance 'A,B': a point's"),
+        ("or use fewer folds (folds=)", "or use fewer folds (--folds)"),
+        ("pass degrees=True", "pass --degrees"),
+        ("choose a tip on the arm with tip=", "choose a tip on the arm with --tip"),
+    ],
+)
+def test_library_messages_name_arguments_the_command_names_flags(library: str, command: str) -> None:
+    """A library message names the library's arguments; the command line shows them as flags."""
+    from pincal.cli.flags import as_flags
+
+    assert as_flags(library).startswith(command)
+    assert "--" not in library

@@ -448,7 +448,7 @@ def test_parse_point_distances() -> None:
     "text", ["0,1", "0,0=5", "0,1=-3", "0,1=0", "0,1=abc", "0=5", "0,1,2=5", ",1=5", "0,1=inf"]
 )
 def test_parse_point_distances_refuses_malformed_items(text: str) -> None:
-    with pytest.raises(DataError, match="--point-distance"):
+    with pytest.raises(DataError, match="point_distances="):
         parse_point_distances(text, "mm")
 
 
@@ -476,7 +476,7 @@ def test_a_distance_naming_an_unknown_point_is_refused() -> None:
     _, fit, _ = _experiment("ur5")
     with pytest.raises(DataError, match="'7'.*0, 1"):
         pincal.calibrate(_robot("ur5"), fit, point_distances=(("0", "7", DISTANCE),))
-    with pytest.raises(DataError, match="--point-distance is for --measure points"):
+    with pytest.raises(DataError, match="point_distances= is for measure=points"):
         pincal.calibrate(_robot("ur5"), fit, "placements", "position", point_distances=DISTANCES)
 
 

@@ -165,9 +165,9 @@ def test_locked_continuous_joint_takes_its_value(tmp_path: Path) -> None:
 
 #: Refusals: (variant, tip, joints, locked, words the line must hold).
 REFUSALS = {
-    "mimic_on_chain": ("continuous", "finger2", None, None, ("'f2' mimics 'f1'", "--tip")),
+    "mimic_on_chain": ("continuous", "finger2", None, None, ("'f2' mimics 'f1'", "tip=")),
     "floating_mid_chain": ("floating_mid_chain", "tool", None, None, ("'j2' is a floating joint", "fixed")),
-    "only_the_base": ("floating_world", "base_link", None, None, ("no revolute", "--tip")),
+    "only_the_base": ("floating_world", "base_link", None, None, ("no revolute", "tip=")),
     "base_in_data": ("floating_world", "tool", ["world_joint", "j1", "j2"], None, ("base", "no data column")),
     "lock_floating": ("floating_world", "tool", ["j1", "j2"], {"world_joint": 1.0}, ("cannot lock",)),
 }

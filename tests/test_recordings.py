@@ -155,7 +155,7 @@ def test_tf_transform_and_clock_offset(session: Recorded, tmp_path: Path) -> Non
     )
     joints = session.robot.joint_names
     off = read_recording(path, joints, RecordingOptions(measure_frame="tracker:ball"))
-    assert any("--time-offset -3" in w for w in off.warnings), off.warnings
+    assert any("time_offset=-3" in w for w in off.warnings), off.warnings
     fixed = read_recording(path, joints, RecordingOptions(measure_frame="tracker:ball", time_offset=-3.0))
     assert not fixed.warnings
     assert len(fixed.data) == 8

@@ -43,7 +43,7 @@ def accuracy_png(result: AccuracyResult) -> bytes:
     try:
         from matplotlib.figure import Figure  # no pyplot: the caller's backend stays as it is
     except ImportError:
-        raise DataError("--plot needs matplotlib: pip install 'pincal[plot]'") from None
+        raise DataError("plotting needs matplotlib: pip install 'pincal[plot]'") from None
     n = len(result.poses)
     fig = Figure(figsize=(3.2 * n, 6.2))
     axes = fig.subplots(2, n, squeeze=False)

@@ -22,6 +22,7 @@ import traceback
 from collections.abc import Iterator, Sequence
 from types import FrameType
 
+from pincal.cli.flags import as_flags
 from pincal.cli.parser import attach_vectors, build_parser
 from pincal.errors import PincalError
 from pincal.files import forget_inputs
@@ -43,7 +44,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             with run_scope():  # no output of the run may be one of its inputs
                 return _run(argv, stdout_closed=closed[1])
         except PincalError as exc:
-            return _error(str(exc), 2)
+            return _error(as_flags(str(exc)), 2)
         except KeyboardInterrupt:
             return _error("interrupted (Ctrl-C): no output was left half-written", 130)
         except Terminated:
@@ -106,7 +107,7 @@ def _run(argv: Sequence[str] | None, stdout_closed: bool = False) -> int:
     except (BrokenPipeError, ValueError):  # ValueError: the stream was closed
         raise _StdoutGone from None
     for warning in getattr(args, "warnings", []):  # kept till now: a failing run says one line
-        _say(f"pincal: warning: {warning}")
+        _say(f"pincal: warning: {as_flags(warning)}")
     return code
 
 

@@ -67,7 +67,7 @@ def check_columns(header: Sequence[str], robot: Robot, locked: Iterable[str] = (
             f"no column for chain joint(s) {', '.join(missing)} (the header has {', '.join(columns)})"
             + (f"; misspelt: {' '.join(hints)}" if hints else "")
             + f": name a column after each joint between the base and {robot.tip}, or pass "
-            f"--lock {','.join(missing)} to hold them at their neutral value"
+            f"locked={','.join(missing)} to hold them at their neutral value"
         )
     if unknown:
         raise DataError(
@@ -128,10 +128,10 @@ def _unit_hint(robot: Robot, data: Dataset, degrees: bool, tol: np.ndarray, bad:
     col, lo, hi = data.q[:, joint], robot.lower[joint] - tol[joint], robot.upper[joint] + tol[joint]
     if robot.prismatic[joint]:
         inside = np.all((col * 1e-3 >= lo) & (col * 1e-3 <= hi))
-        return "the values look like millimetres: pass --units mm" if inside else None
+        return "the values look like millimetres: pass units=mm" if inside else None
     too_large = np.abs(col).max() > 2 * np.pi + tol[joint]  # no angle in radians is that large
     if not degrees and too_large and np.all((np.deg2rad(col) >= lo) & (np.deg2rad(col) <= hi)):
-        return "the values look like degrees given as radians: pass --degrees"
+        return "the values look like degrees given as radians: pass degrees=True"
     return None
 
 
@@ -179,21 +179,21 @@ def check_scale(robot: Robot, data: Dataset, units: str = "m", degrees: bool = F
     angles = None if other is None else spread(other)
     if other is not None and angles and 1.0 / 3.0 < measured / angles < 3.0 and follows(other, data.points):
         hint = (
-            "the joint values look like radians read as degrees: drop --degrees"
+            "the joint values look like radians read as degrees: drop degrees=True"
             if degrees
-            else "the joint values look like degrees read as radians: pass --degrees"
+            else "the joint values look like degrees read as radians: pass degrees=True"
         )
     elif tip_spread < 1e-3:  # [m] poses alike: the rank check says why
         return
     elif ratio >= SCALE_RATIO:
         hint = (
-            "the values look like millimetres: pass --units mm"
+            "the values look like millimetres: pass units=mm"
             if units == "m" and 300 < ratio < 3000
             else "check the unit of x,y,z"
         )
     else:
         hint = (
-            "the values look like metres: drop --units mm"
+            "the values look like metres: drop units=mm"
             if units == "mm" and 1 / 3000 < ratio < 1 / 300
             else "check the unit of x,y,z and that the points belong to this robot"
         )

@@ -225,7 +225,7 @@ def check_locked(path: str | Path, names: Sequence[str], values: np.ndarray, deg
         span = float(col.max() - col.min()) if len(col) else 0.0
         if (np.deg2rad(span) if degrees else span) > LOCK_TOLERANCE:
             raise DataError(
-                f"{path}: --lock {name}, but its column moves (from {col.min():.6g} to {col.max():.6g}): "
-                f"a locked joint is held at its neutral value, so drop --lock {name} to calibrate "
+                f"{path}: locked={name}, but its column moves (from {col.min():.6g} to {col.max():.6g}): "
+                f"a locked joint is held at its neutral value, so drop locked={name} to calibrate "
                 "with its values"
             )

@@ -110,14 +110,14 @@ class Dataset:
     def split(self, fraction: float, seed: int = 0) -> tuple[Dataset, Dataset]:
         """Random (fit, held-out) split, ``fraction`` of the poses held out."""
         if not 0.0 < fraction < 1.0:
-            raise DataError(f"--holdout must be a fraction between 0 and 1, got {fraction}")
+            raise DataError(f"fraction= must be a fraction between 0 and 1, got {fraction}")
         if seed < 0:
-            raise DataError(f"--seed must be 0 or more, got {seed}")
+            raise DataError(f"seed= must be 0 or more, got {seed}")
         order = np.random.default_rng(seed).permutation(len(self))
         n_out = max(1, round(fraction * len(self)))
         if n_out >= len(self):
             raise DataError(
-                f"--holdout {fraction} of {len(self)} poses leaves none to fit: hold out a smaller fraction"
+                f"fraction={fraction} of {len(self)} poses leaves none to fit: hold out a smaller fraction"
             )
         return self.subset(np.sort(order[n_out:])), self.subset(np.sort(order[:n_out]))
 

@@ -162,7 +162,7 @@ def read_joints(reader: Any, topic: str) -> JointSeries:
     msgs = [m for m in msgs if len(m[2]) and len(m[2]) == len(m[3])]
     if not msgs:
         raise DataError(
-            f"the recording holds no joint positions on {topic}: name the topic with --joint-topic"
+            f"the recording holds no joint positions on {topic}: name the topic with joint_topic="
         )
     msgs.sort(key=lambda m: m[0])
     names: dict[str, int] = {}

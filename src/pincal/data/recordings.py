@@ -148,7 +148,7 @@ def segment_poses(
         what = "no static segment" if not segments else f"no measurement on {measure.source} during any"
         raise DataError(
             f"{what} of {options.duration:g} s with the joints within {options.band:g}: "
-            "check --static-band, --static-time and --time-offset"
+            "check band=, duration= and time_offset="
         )
     quats = None if rows[0][2] is None else np.array([r[2] for r in rows])
     spread = np.array([r[3] for r in rows])
@@ -170,19 +170,19 @@ def _measure_source(types: dict[str, str], options: RecordingOptions) -> tuple[s
         if kind not in MEASURE_TYPES:
             found = "not in the recording" if kind is None else f"a {kind}"
             raise DataError(
-                f"--measure-topic {options.measure_topic} is {found}: give a {', '.join(wanted)} topic"
+                f"measure_topic={options.measure_topic} is {found}: give a {', '.join(wanted)} topic"
             )
         return options.measure_topic, kind
     candidates = sorted(t for t, kind in types.items() if kind in MEASURE_TYPES)
     if len(candidates) > 1:
         raise DataError(
             f"the recording has {len(candidates)} candidate measurement topics ({', '.join(candidates)}): "
-            "name the one to use with --measure-topic"
+            "name the one to use with measure_topic="
         )
     if not candidates:
         raise DataError(
             f"the recording has no measurement topic ({', '.join(wanted)}): for a /tf transform, "
-            "give --measure-frame PARENT:CHILD"
+            "give measure_frame=PARENT:CHILD"
         )
     return candidates[0], types[candidates[0]]
 
@@ -196,7 +196,7 @@ def _read_series(
         tf_topics = [t for t, kind in types.items() if kind == TF]
         if not parent or not child or not tf_topics:
             why = "PARENT:CHILD" if not parent or not child else "a recording with /tf"
-            raise DataError(f"--measure-frame {options.measure_frame}: needs {why}")
+            raise DataError(f"measure_frame={options.measure_frame}: needs {why}")
         measure = read_tf(reader, tf_topics, parent.lstrip("/"), child.lstrip("/"))
     else:
         topic, kind = _measure_source(types, options)
@@ -208,7 +208,7 @@ def _read_series(
         found = f"joint states are on {', '.join(states)}" if states else "it holds no joint states"
         raise DataError(
             f"the recording has no sensor_msgs/JointState on {options.joint_topic} ({found}): "
-            "give --joint-topic"
+            "give joint_topic="
         )
     return read_joints(reader, options.joint_topic), measure
 
@@ -221,8 +221,8 @@ def _clock_warning(joints: JointSeries, measure: MeasureSeries, options: Recordi
         return []
     return [
         f"the stamps of {measure.source} and of the joint states disagree by {gap:.3g} s against the "
-        f"recording time, more than --static-time {options.duration:g} s: if the measurement's clock is "
-        f"off, pass --time-offset {options.time_offset + gap:.3g}"
+        f"recording time, more than duration={options.duration:g} s: if the measurement's clock is "
+        f"off, pass time_offset={options.time_offset + gap:.3g}"
     ]
 
 
@@ -279,7 +279,7 @@ def read_static_joints(path: str | Path, joints: Sequence[str], options: Recordi
     path = Path(path)
     with open_recording(path) as reader:
         if topic_types(reader).get(options.joint_topic) != JOINT_STATE:
-            raise DataError(f"{path}: no sensor_msgs/JointState on {options.joint_topic}: give --joint-topic")
+            raise DataError(f"{path}: no sensor_msgs/JointState on {options.joint_topic}: give joint_topic=")
         series = read_joints(reader, options.joint_topic)
     missing = [j for j in joints if j not in series.names]
     if missing:

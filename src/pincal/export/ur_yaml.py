@@ -62,7 +62,7 @@ def robot_ur_chain(robot: Robot) -> URChain:
     if not chain.in_ur_frames():
         raise DataError(
             "a UR kinematics YAML holds ur_description's joint frames, which this URDF does not use: "
-            "give the robot's kinematics YAML with --kinematics (for a nominal robot, ur_description's "
+            "give the robot's kinematics YAML with kinematics= (for a nominal robot, ur_description's "
             "config/<type>/default_kinematics.yaml)"
         )
     return chain

@@ -174,15 +174,15 @@ def _prolog(source: bytes) -> bytes:
 def check_frame_name(name: str | None) -> None:
     """Refuse an ``--add-frame`` name that is not a plain XML name."""
     if name is not None and not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_.-]*", name):
-        raise DataError(f"--add-frame {name!r}: use letters, digits, '_', '-' or '.', starting with a letter")
+        raise DataError(f"add_frame={name!r}: use letters, digits, '_', '-' or '.', starting with a letter")
 
 
 def _add_frame(root: etree._Element, tip: str, name: str, cal: Calibration) -> None:
     links = {link.get("name") for link in root.findall("link")}
     if tip not in links:
-        raise DataError(f"--add-frame needs the tip {tip!r} to be a link of the URDF")
+        raise DataError(f"add_frame= needs the tip {tip!r} to be a link of the URDF")
     if name in links or f"{name}_joint" in {j.get("name") for j in root.findall("joint")}:
-        raise DataError(f"--add-frame {name!r}: the URDF already has a link or joint of that name")
+        raise DataError(f"add_frame={name!r}: the URDF already has a link or joint of that name")
     _, _, tool = cal.split()
     indent = "\n  "
     if len(root):

@@ -62,18 +62,16 @@ def parse_point_distances(text: str | None, units: str = "m") -> tuple[PointDist
         except (ValueError, KeyError):
             distance = float("nan")
         if len(pair) != 2 or not all(pair) or not abs(distance) < 1e6:  # [m], NaN and inf fail
-            raise DataError(
-                f"--point-distance {item!r}: write A,B=D (two point names, a distance in {units})"
-            )
+            raise DataError(f"point_distances={item!r}: write A,B=D (two point names, a distance in {units})")
         if pair[0] == pair[1]:
-            raise DataError(f"--point-distance {item!r}: a point's distance to itself is 0")
+            raise DataError(f"point_distances={item!r}: a point's distance to itself is 0")
         if distance <= 0:
-            raise DataError(f"--point-distance {item!r}: the distance must be positive")
+            raise DataError(f"point_distances={item!r}: the distance must be positive")
         twice = [d for a, b, d in out if {a, b} == set(pair)]
         if twice:
             same = "twice" if abs(twice[0] - distance) <= 1e-12 else f"twice, {twice[0] / UNITS[units]:g} and"
             raise DataError(
-                f"--point-distance gives the distance between {pair[0]} and {pair[1]} {same} "
+                f"point_distances= gives the distance between {pair[0]} and {pair[1]} {same} "
                 f"{distance / UNITS[units]:g} {units}: give each pair once"
             )
         out.append((pair[0], pair[1], distance))
@@ -102,7 +100,7 @@ def check_distances(points: tuple[str, ...], distances: tuple[PointDistance, ...
         for name in (a, b):
             if name not in points:
                 raise DataError(
-                    f"--point-distance names point {name!r}, but the data's points are only "
+                    f"point_distances= names point {name!r}, but the data's points are only "
                     f"{', '.join(points)} (a point column's names, or the hole_<name>.csv files)"
                 )
 
@@ -224,7 +222,7 @@ def gauge_reasons(
         if share.max() <= 0:
             continue
         name = names[int(np.argmax(share))]
-        hint = " (give --point-distance A,B=D): lengths keep the URDF's scale" if "scale" in label else ""
+        hint = " (give point_distances=A,B=D): lengths keep the URDF's scale" if "scale" in label else ""
         reasons.setdefault(name, f"not identifiable from fixed points: the whole set-up's {label}{hint}")
     return reasons
 
@@ -240,7 +238,7 @@ def points_rows(
     ``cols``, their Jacobian (else an empty array); ``target``: tip rotations and positions."""
     m, index = problem.measurement, problem.point_index
     if index is None:
-        raise DataError("--measure points needs a point column naming one of the fitted points in every row")
+        raise DataError("measure=points needs a point column naming one of the fitted points in every row")
     centres = problem.point_positions(theta)
     weight = DISTANCE_WEIGHT * np.sqrt(len(problem.data))
     where = {name: k for k, name in enumerate(m.points)}

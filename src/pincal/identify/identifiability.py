@@ -196,6 +196,6 @@ def check_rank(
     names = ", ".join(lost[:8]) + (f" and {len(lost) - 8} more" if len(lost) > 8 else "")
     raise IdentifiabilityError(
         f"the data cannot identify {names}, which varied poses would: {cause}. Measure poses that "
-        "move every joint over its range, fit fewer parameters (--model offsets), or pass "
-        "--partial to fit only what this data identifies"
+        "move every joint over its range, fit fewer parameters (model=offsets), or pass "
+        "partial=True to fit only what this data identifies"
     )

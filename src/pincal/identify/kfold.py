@@ -122,7 +122,7 @@ def cross_validate_with(
             least = len(data) + next(k for k, n in enumerate(fits) if n >= exc.poses_needed)
             raise IdentifiabilityError(
                 f"{folds}-fold cross-validation fits {len(kept)} of the {len(data)} poses at a time, which "
-                f"give too few equations: measure at least {least} poses, or use fewer folds (--folds)",
+                f"give too few equations: measure at least {least} poses, or use fewer folds (folds=)",
                 least,
             ) from None
         cals.append(cal)

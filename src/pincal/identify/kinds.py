@@ -69,7 +69,7 @@ class MeasurementKind:
     def check(self, data: Dataset) -> None:
         """Raise :class:`~pincal.errors.DataError` if ``data`` lacks what this kind needs."""
         if self.orientation and not data.has_orientation:
-            raise DataError(f"--measure {self.name} needs the orientation columns qw,qx,qy,qz")
+            raise DataError(f"measure={self.name} needs the orientation columns qw,qx,qy,qz")
 
     def rows(
         self, problem: ProblemRows, theta: np.ndarray, cols: np.ndarray | None
@@ -244,11 +244,11 @@ def check_options(
         DataError: what is wrong, and what to give instead.
     """
     if kind.fixed_points and data.labels is None:
-        raise DataError("--measure points needs a point column naming the fixed point of each row")
+        raise DataError("measure=points needs a point column naming the fixed point of each row")
     if point_distances and not kind.fixed_points:
         raise DataError(
-            f"--point-distance is for --measure points (fixed-point data), not for {kind.name} data"
+            f"point_distances= is for measure=points (fixed-point data), not for {kind.name} data"
         )
     if not (isinstance(pairs, str) and pairs == "all") and not kind.by_pairs:
         named = pairs if isinstance(pairs, str) else "(an array)"
-        raise DataError(f"--pairs {named} is for --measure distance, not for {kind.name} data")
+        raise DataError(f"pairs={named} is for measure=distance, not for {kind.name} data")

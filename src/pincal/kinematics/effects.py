@@ -75,7 +75,7 @@ class Payload:
             values = []
         if len(values) != 4 or not np.all(np.abs(values) < 1e6) or values[0] < 0:  # NaN fails too
             raise DataError(
-                f"--payload {text!r}: write MASS,X,Y,Z, numbers below 1e6 (kg, then m in the tip frame)"
+                f"payload={text!r}: write MASS,X,Y,Z, numbers below 1e6 (kg, then m in the tip frame)"
             )
         return cls(values[0], (values[1], values[2], values[3]))
 
@@ -159,7 +159,7 @@ class Extension:
         effect, sep, joint = text.partition(":")
         if not sep:
             raise DataError(
-                f"--extend {text!r}: write EFFECT:JOINT, for example joint_compliance:{robot.joint_names[1]}"
+                f"extension={text!r}: write EFFECT:JOINT, for example joint_compliance:{robot.joint_names[1]}"
             )
         if effect == "gear_harmonic2":
             return cls(robot, "gear_harmonic", joint, 2, payload)

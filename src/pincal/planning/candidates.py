@@ -255,8 +255,8 @@ def check_sockets(truth: TrueRobot, sockets: np.ndarray, rng: np.random.Generato
     )
     far = farthest(truth.robot, truth.tool.translation, origin)
     raise DataError(
-        f"--sockets out of the arm's reach: the measured point gets at most about {far:.3g} m from "
-        f"the first joint's origin ({xyz(origin)}), and {named}: check the coordinates and --units"
+        f"sockets= out of the arm's reach: the measured point gets at most about {far:.3g} m from "
+        f"the first joint's origin ({xyz(origin)}), and {named}: check the coordinates and units="
     )
 
 
@@ -283,7 +283,7 @@ def check_memory(robot: Robot, candidates: int, measure: str, n_poses: int) -> N
         return
     most = max(1, int(free / 2 // per_candidate))
     raise DataError(
-        f"--candidates {candidates} needs about {candidates * per_candidate / 1e9:.3g} GB of memory, "
+        f"candidates={candidates} needs about {candidates * per_candidate / 1e9:.3g} GB of memory, "
         f"and {free / 1e9:.3g} GB is available: ask for {most} or fewer (1000 to 10000 are plenty)"
     )
 

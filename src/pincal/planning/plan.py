@@ -329,9 +329,9 @@ def _check(
     if criterion not in CRITERIA:
         raise DataError(f"unknown criterion {criterion!r}: choose one of {', '.join(CRITERIA)}")
     if kind.fixed_points and sockets is None:
-        raise DataError("planning fixed-point data needs where the sockets are: --sockets X,Y,Z;X,Y,Z")
+        raise DataError("planning fixed-point data needs where the sockets are: sockets=X,Y,Z;X,Y,Z")
     if not 0 < n_poses <= candidates:
-        raise DataError(f"--poses {n_poses} must be between 1 and the number of candidates ({candidates})")
+        raise DataError(f"n_poses={n_poses} must be between 1 and the number of candidates ({candidates})")
     check_memory(robot, candidates, measure, n_poses)
 
 

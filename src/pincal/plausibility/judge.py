@@ -117,7 +117,7 @@ def judge_calibration(
     if off > 1e-3 * size:
         hint = (
             f"the {cal.model.kind} model does not reproduce this URDF: its nominal tip is {mm_text(off)} off "
-            "the URDF's at the data's poses (a pincal limitation for this robot): use --model placements"
+            "the URDF's at the data's poses (a pincal limitation for this robot): use model=placements"
         )
         return replace(verdict, cause="model", hint=hint)
     found = other_reading(cal, kept, degrees, quaternion_order)
@@ -302,23 +302,23 @@ def _largest(cal: Calibration) -> str:
 # ------------------------------------------------------------------------------ generic fixes
 
 _DATA = (
-    "the joint columns (names, units: --degrees, order), x,y,z, and that the data belongs to this "
-    "robot and --tip"
+    "the joint columns (names, units: degrees=True, order), x,y,z, and that the data belongs to this "
+    "robot and tip="
 )
 _FIXES = {
     "outliers": "too many outliers to leave out (the screen leaves out a fifth of the poses at most): check "
-    "those rows and the instrument, or fit with a robust --loss soft_l1",
+    "those rows and the instrument, or fit with a robust loss=soft_l1",
     "orientation": "the measured orientations are not the tip's: check the quaternion columns (their order: "
     "--quaternion-order) and that they belong to the measured target",
-    "before": f"the data is not this robot's as read: check {_DATA}, and --instrument-frame / --tool-point",
-    "gain": "the data does not fit this robot's kinematics: check the columns (--quaternion-order) and --tip",
-    "tool": "no arm carries that: check x,y,z and their unit (--units), and that the data belongs to this "
-    "robot and --tip",
+    "before": f"the data is not this robot's as read: check {_DATA}, and instrument_frame= / tool=",
+    "gain": "the data does not fit this robot's kinematics: check the columns (--quaternion-order) and tip=",
+    "tool": "no arm carries that: check x,y,z and their unit (units=), and that the data belongs to this "
+    "robot and tip=",
 }
 _FIXES["correction"] = _FIXES["before"]
 _FIXES["distance"] = (
-    "check --point-distance (the points' names, the value and its unit: --units) and the joint columns "
-    "(--degrees)"
+    "check point_distances= (the points' names, the value and its unit: units=) and the joint columns "
+    "(degrees=True)"
 )
 
 
@@ -331,6 +331,6 @@ def _fix(name: str, cal: Calibration) -> str:
         return (
             f"calibration removes little of it ({mm_text(before * 1e-3)} before): the measurements scatter "
             "about as far as the robot reaches (instrument noise, or another robot's or tip's data): "
-            "check the instrument, the columns and --tip"
+            "check the instrument, the columns and tip="
         )
     return f"no rigid arm of this URDF fits the data: check {_DATA}"

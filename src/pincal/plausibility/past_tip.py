@@ -110,8 +110,8 @@ def check_past_tip(robot: Robot, data: Dataset, path: Path, reading: Reading = R
         names = ", ".join(j for j, _ in past)
         raise DataError(
             f"{path}: the column(s) {names} are joints after the tip {robot.tip} and move: the data "
-            f"looks measured after them (the nominal robot fits it within {there:.3g} mm with --tip "
-            f"{tip}, {here:.3g} mm with --tip {robot.tip}): pass --tip {tip} (or a frame after it)"
+            f"looks measured after them (the nominal robot fits it within {there:.3g} mm with tip="
+            f"{tip}, {here:.3g} mm with tip={robot.tip}): pass tip={tip} (or a frame after it)"
         )
 
 

@@ -83,11 +83,11 @@ def _readings(cal: Calibration, data: Dataset, degrees: bool, quaternion_order: 
         q = data.q.copy()
         if degrees:
             q[:, revolute] = np.rad2deg(q[:, revolute])
-            fix = "the joint values look like radians read as degrees: drop --degrees"
+            fix = "the joint values look like radians read as degrees: drop degrees=True"
             yield "radians", fix, replace(data, q=q), {}
         else:
             q[:, revolute] = np.deg2rad(q[:, revolute])
-            yield "degrees", "looks like degrees read as radians: pass --degrees", replace(data, q=q), {}
+            yield "degrees", "looks like degrees read as radians: pass degrees=True", replace(data, q=q), {}
     if m.measure.registered:
         for i, j in ((0, 1), (0, 2), (1, 2)):
             a, b = "xyz"[i], "xyz"[j]
@@ -96,7 +96,7 @@ def _readings(cal: Calibration, data: Dataset, degrees: bool, quaternion_order: 
             fix = f"{a} and {b} look swapped (the points are mirrored): exchange the {a} and {b} columns"
             yield f"swapped_{a}{b}", fix, replace(data, points=points), {}
         if not m.fit_instrument:
-            fix = "the data is not in the base frame: drop --instrument-frame base"
+            fix = "the data is not in the base frame: drop instrument_frame=base"
             yield "instrument_frame", fix, data, {"instrument_T_base": None}
         if not m.fit_tool:
             fix = "the measured point is not where --tool-point says: drop --tool-point"

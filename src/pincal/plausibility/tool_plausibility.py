@@ -77,12 +77,12 @@ def judge_tool(
             return replace(verdict, cause=cause, hint=f"{fix} ({first.text}; read so, {100 * other:.2g} %)")
     fixes = {
         "fit": "the poses do not touch one point as read: check the angle columns (a,b,c in degrees, "
-        "R = Rz(a) Ry(b) Rx(c); or the quaternion's order: --quaternion-order), --orientation, and "
+        "R = Rz(a) Ry(b) Rx(c); or the quaternion's order: quaternion_order=), orientation=, and "
         "re-teach the poses flagged far from the others",
-        "tool": "check the joint columns (units: --degrees) and --tip",
-        "tool_size": "the x,y,z columns look like millimetres: pass --units mm"
+        "tool": "check the joint columns (units: degrees=True) and tip=",
+        "tool_size": "the x,y,z columns look like millimetres: pass units=mm"
         if unit == "m" and length * 1e-3 <= MAX_TOOL_M
-        else "check the unit of x,y,z (--units) and that every TCP pose touches one point",
+        else "check the unit of x,y,z (units=) and that every TCP pose touches one point",
     }
     return replace(verdict, cause=first.name, hint=f"{first.text}: {fixes[first.name]}")
 

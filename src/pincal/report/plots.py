@@ -41,7 +41,7 @@ def plot_diagnosis(
         DataError: nothing to plot, or the data are distances (no per-pose residual).
     """
     if diagnosis.baseline.measurement.measure.by_pairs:
-        raise DataError("--plots needs position or pose data: distances have no per-pose residual")
+        raise DataError("the diagnosis plots need position or pose data: distances have no per-pose residual")
     if diagnosis.cause is None:
         if residual is None or residual.errors is None:
             raise DataError("nothing to plot: the diagnosis named no cause")

@@ -43,7 +43,7 @@ class PackageNotFoundError(RobotError):
     def __init__(self, package: str, where: str = "the xacro") -> None:
         super().__init__(
             f"{where} needs ROS package {package!r} ($(find {package})), which is not found: give "
-            f"--package-path {package}=DIR (the folder holding its package.xml), or set ROS_PACKAGE_PATH"
+            f"package_paths={package}=DIR (the folder holding its package.xml), or set ROS_PACKAGE_PATH"
         )
         self.package, self.where = package, where
 
@@ -77,7 +77,7 @@ def parse_xacro_args(items: list[str] | tuple[str, ...] | None) -> dict[str, str
     for item in items or ():
         name, sep, value = item.partition(":=")
         if not sep or not name.strip():
-            raise RobotError(f"--xacro-arg {item!r}: expected NAME:=VALUE (for example ur_type:=ur5e)")
+            raise RobotError(f"xacro_args={item!r}: expected NAME:=VALUE (for example ur_type:=ur5e)")
         out[name.strip()] = value
     return out
 
@@ -92,10 +92,10 @@ def parse_package_paths(items: list[str] | tuple[str, ...] | None) -> dict[str, 
     for item in items or ():
         name, sep, folder = item.partition("=")
         if not sep or not name.strip() or not folder.strip():
-            raise RobotError(f"--package-path {item!r}: expected PKG=DIR (for example ur_description=src/ur)")
+            raise RobotError(f"package_paths={item!r}: expected PKG=DIR (for example ur_description=src/ur)")
         path = Path(folder.strip()).expanduser()
         if not path.is_dir():
-            raise RobotError(f"--package-path {item!r}: {path} is not a folder")
+            raise RobotError(f"package_paths={item!r}: {path} is not a folder")
         out[name.strip()] = path.resolve()
     return out
 
@@ -228,7 +228,7 @@ def xacro_to_urdf(
     unknown = sorted(set(xacro_args or {}) - declared)
     if unknown:
         have = ", ".join(sorted(declared)) or "none"
-        raise RobotError(f"--xacro-arg {unknown[0]}: {path.name} declares no such argument (it has: {have})")
+        raise RobotError(f"xacro_args={unknown[0]}: {path.name} declares no such argument (it has: {have})")
     return text
 
 
@@ -304,7 +304,7 @@ def robot_description(
         read_urdf_text(path)  # the same checks on the xacro's own text
         text = check_urdf_text(xacro_to_urdf(path, xacro_args, package_paths), path)
     elif xacro_args:
-        raise RobotError(f"--xacro-arg is for a .xacro robot file, and {path.name} is not one")
+        raise RobotError(f"xacro_args= is for a .xacro robot file, and {path.name} is not one")
     else:
         text = read_urdf_text(path)
     text = without_default_namespace(text)  # issue 33: the writers look elements up by plain name
@@ -338,7 +338,7 @@ def borrow_inertias(text: str, donor_text: str, donor: str) -> str:
             moved += 1
     if not moved:
         raise RobotError(
-            f"--inertias {donor}: none of its links with masses shares a name with a link of the "
+            f"inertias={donor}: none of its links with masses shares a name with a link of the "
             "URDF that has none: give the URDF of the same robot with its <inertial> elements"
         )
     return ET.tostring(root, encoding="unicode")

@@ -100,18 +100,18 @@ def actuated_joints(
             raise RobotError(
                 f"joint {name!r} is a {_kind(full, j)} joint between the arm's joints: pincal "
                 "calibrates revolute, continuous and prismatic joints; make it fixed in the URDF, "
-                f"or choose a tip before it with --tip"
+                f"or choose a tip before it with tip="
             )
         if name in mimic:
             raise RobotError(
                 f"joint {name!r} mimics {mimic[name]!r} and lies between the base and {tip!r}: "
-                "pincal calibrates independent joints only; choose a tip before it with --tip, or "
+                "pincal calibrates independent joints only; choose a tip before it with tip=, or "
                 "remove its <mimic> from the URDF if your data gives its value"
             )
     if not keep:
         raise RobotError(
             f"no revolute, continuous or prismatic joint between the base and {tip!r}: "
-            "choose a tip on the arm with --tip"
+            "choose a tip on the arm with tip="
         )
     return keep
 

@@ -246,7 +246,7 @@ def load_robot(
     tip_id = _find_frame(full, tip)
     if full.frames[tip_id].parentJoint == 0:
         raise RobotError(
-            f"frame {tip!r} has no joint between the base and it: choose a tip on the arm with --tip"
+            f"frame {tip!r} has no joint between the base and it: choose a tip on the arm with tip="
         )
     keep = actuated_joints(full, tip_id, tip, joints, mimic)
     q_ref = reference_configuration(full, locked)
@@ -283,7 +283,7 @@ def _with_inertias(text: str, donor: str | Path) -> str:
     name = str(donor)
     path = bundled_urdf(name) if name in BUNDLED else Path(name)
     if not path.is_file():
-        raise RobotError(f"--inertias {name}: no such URDF file, nor a bundled robot ({', '.join(BUNDLED)})")
+        raise RobotError(f"inertias={name}: no such URDF file, nor a bundled robot ({', '.join(BUNDLED)})")
     return borrow_inertias(text, robot_description(path), name)
 
 

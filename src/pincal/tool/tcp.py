@@ -202,7 +202,7 @@ def calibrate_tool(
     n_tcp = n_rows - n_orient + 1 if n_orient else n_rows
     if n_orient and n_rows < n_orient + 2:
         raise DataError(
-            f"--orientation {orientation} needs at least {n_orient + 2} rows "
+            f"orientation={orientation} needs at least {n_orient + 2} rows "
             f"(3 TCP poses, the last shared with the orientation rows), got {n_rows}"
         )
     tcp, delta, cond = tcp_position(rotations[:n_tcp], positions[:n_tcp])
