@@ -20,14 +20,13 @@ from pincal.identify.fixed_points import PointDistance
 from pincal.identify.guard import DEFAULT_PULL, Pull
 from pincal.identify.identifiability import RCOND
 from pincal.identify.measurements import ROTATION_WEIGHT
+from pincal.identify.solver import SETUP_KEYS
 from pincal.kinematics.effects import Extension, Payload
 from pincal.options import LOSSES
 from pincal.robot.robots import Robot
 
 #: How geometry and an effect share the fit (see :attr:`CalibrateOptions.deliver`).
 DELIVERIES = ("balanced", "joint", "none")
-#: The options of the measurement set-up (:func:`pincal.identify.solver.set_up`'s keywords).
-SETUP = ("instrument_T_base", "tool", "rotation_weight", "pairs", "point_distances")
 #: The options of each fit (:func:`pincal.auto.pipeline.fit`'s keywords).
 FITTING = ("partial", "loss", "f_scale", "rcond", "pull")
 
@@ -109,8 +108,8 @@ class CalibrateOptions:
         return {f.name: getattr(self, f.name) for f in fields(self)}
 
     def setup(self) -> dict[str, Any]:
-        """The measurement set-up's options (:data:`SETUP`)."""
-        return {name: getattr(self, name) for name in SETUP}
+        """The measurement set-up's options (:data:`pincal.identify.solver.SETUP_KEYS`)."""
+        return {name: getattr(self, name) for name in SETUP_KEYS}
 
     def fitting(self) -> dict[str, Any]:
         """Each fit's options (:data:`FITTING`)."""
