@@ -24,6 +24,7 @@ import pytest
 
 import pincal
 from pincal.auto.choice import NESTED_MAX_POSES
+from pincal.auto.crossval import cross_validate
 from pincal.cli import main
 from pincal.kinematics.effects import Extension
 from pincal.kinematics.models import PlacementsModel
@@ -160,7 +161,7 @@ def test_nested_equals_refitting_without_each_fold(get_robot: Callable[[str], pi
     fit, _ = sparse_truth(robot, 30, seed=9)
     cal = pincal.calibrate(robot, fit, params="auto", nested=True, folds=3)
     assert cal.choice is not None and cal.choice.nested is not None
-    by_hand = pincal.auto.crossval.cross_validate(robot, fit, folds=3, params="auto")
+    by_hand = cross_validate(robot, fit, folds=3, params="auto")
     assert cal.choice.nested.after.rms_mm == pytest.approx(by_hand.after.rms_mm, rel=1e-9)
     first = by_hand.calibrations[0].choice
     assert first is not None and first.selection is not None  # each fold chose on its own poses

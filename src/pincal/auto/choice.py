@@ -86,6 +86,8 @@ class ModelChoice:
         nested: the nested cross-validation of the whole procedure, if it ran.
         nested_note: why it did not run, or how it ran.
         skipped: why ``extension="auto"``'s diagnosis did not run (too few poses for its folds).
+        geometry_selection: the first round's selection, the geometry alone's (``extension="auto"``
+            with ``params="auto"``): the parameters a balanced delivery fits.
     """
 
     params_mode: str
@@ -100,6 +102,7 @@ class ModelChoice:
     nested: CrossValidation | None = field(default=None, repr=False)
     nested_note: str = "not asked for"
     skipped: str | None = None
+    geometry_selection: Selection | None = field(default=None, repr=False)
 
     def with_nested(self, judge: Callable[[], CrossValidation], forced: bool, n_poses: int) -> ModelChoice:
         """This choice with the nested cross-validation ``judge()`` run (always when ``forced``,
@@ -248,6 +251,7 @@ def choose(
             break
         cause = named
         params, sel = _select(set_up(robot, data, model, measure, extension=cause, **options.setup()), wanted)
+    first = base.selection
     if kept is None:
-        return replace(base, diagnosis=diag, rounds=tuple(rounds))
-    return replace(kept[1], rounds=tuple(rounds))
+        return replace(base, diagnosis=diag, rounds=tuple(rounds), geometry_selection=first)
+    return replace(kept[1], rounds=tuple(rounds), geometry_selection=first)

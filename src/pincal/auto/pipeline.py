@@ -150,7 +150,8 @@ def _delivered(
     problem = setup.problem
     kind = problem.measurement.kind
     geometry = set_up(problem.model.robot, setup.data, problem.model, kind, **opts.setup())
-    kept = _geometric_params(geometry, choice, wanted)
+    choice = _geometric_choice(geometry, choice, wanted)
+    kept = choice.params
     joint = found if kept == wanted else fit(setup, kept, **opts.fitting())  # the same parameters: reused
     return _balanced(setup, geometry, kept, joint, choice, test, opts)
 
@@ -202,14 +203,16 @@ def _outliers_for_both(
     return np.intersect1d(bad, again)
 
 
-def _geometric_params(geometry: Setup, choice: ModelChoice, wanted: Any) -> tuple[str, ...] | None:
-    """The parameters of the geometry alone: those chosen without a cause (the first round of
-    ``extension="auto"``; chosen again for ``params="auto"`` with a given extension)."""
+def _geometric_choice(geometry: Setup, choice: ModelChoice, wanted: Any) -> ModelChoice:
+    """The choice with the parameters of the geometry alone, which the balanced delivery fits
+    and the report names: those chosen without a cause (the first round of ``extension="auto"``;
+    chosen again for ``params="auto"`` with a given extension); given ones as given."""
+    if choice.params_mode != "auto":
+        return choice
     if choice.rounds:
-        return choice.rounds[0].params
-    if choice.params_mode == "auto":
-        return select_on(geometry).params
-    return wanted if isinstance(wanted, tuple) else None
+        return replace(choice, params=choice.rounds[0].params, selection=choice.geometry_selection)
+    sel = select_on(geometry)
+    return replace(choice, params=sel.params, selection=sel)
 
 
 def _without(
