@@ -27,6 +27,7 @@ import pinocchio as pin
 from pincal.data.dataset import Targets, atomic_write
 from pincal.errors import DataError, NotSupportedError
 from pincal.export.calibrated_robot import CalibratedRobot
+from pincal.identify.kinds import get_kind
 from pincal.identify.measurements import ROTATION_WEIGHT
 from pincal.robot.robots import Robot
 
@@ -227,7 +228,8 @@ def _choose_task(calibrated: CalibratedRobot, program: np.ndarray | Targets, tas
         NotSupportedError: a pose task on a chain of fewer than 6 joints.
     """
     n_joints = calibrated.robot.n_joints
-    oriented = program.rotations is not None if isinstance(program, Targets) else calibrated.measure == "pose"
+    measured = get_kind(calibrated.measure).orientation  # the sidecar's kind: its data had orientations
+    oriented = program.rotations is not None if isinstance(program, Targets) else measured
     default = "pose" if oriented else "position"
     task = task or (default if n_joints >= 6 else "position")
     if task not in ("pose", "position"):
