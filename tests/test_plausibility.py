@@ -221,6 +221,31 @@ def test_accept_implausible_keeps_it_with_a_warning(
     assert any(not c["passed"] and c["value"] > c["limit"] for c in verdict["checks"])
 
 
+def test_the_library_gives_the_command_s_verdict(
+    run: RunCli, truth: pincal.simulation.truth.TrueRobot, poses: np.ndarray, tmp_path: Path
+) -> None:
+    """``pincal.calibrate`` judges its own result as the command does: the same verdict in the
+    calibration and its report, and the writers refuse what the command refuses, unless
+    ``accept_implausible=True``; a plausible fit is written as it is."""
+    ur5 = truth.robot
+    data = truth.measure(poses, 3e-5, seed=2)
+    swapped = replace(data, points=data.points[:, [1, 0, 2]])
+    refused(run("calibrate", "ur5", write(tmp_path, "xy.csv", swapped), *FAST), "x and y look swapped")
+    cal = pincal.calibrate(ur5, swapped, params="all", nested=False)
+    assert cal.plausibility is not None and not cal.plausibility.plausible
+    assert "x and y look swapped" in (cal.plausibility.hint or "")
+    assert pincal.report_dict(cal, swapped)["plausibility"]["cause"] == "swapped_xy"
+    assert "cannot be right: x and y look swapped" in pincal.summary(cal, swapped)
+    with pytest.raises(pincal.ImplausibleError, match="accept_implausible=True"):
+        pincal.write_corrected_urdf(cal, tmp_path / "wrong.urdf")
+    assert not (tmp_path / "wrong.urdf").exists()
+    urdf, _ = pincal.write_corrected_urdf(cal, tmp_path / "kept.urdf", accept_implausible=True)
+    assert urdf.exists()
+    good = pincal.calibrate(ur5, data, params="all", nested=False)
+    assert good.plausibility is not None and good.plausibility.plausible
+    assert pincal.write_corrected_urdf(good, tmp_path / "good.urdf")[0].exists()
+
+
 # ---------------------------------------------------------------- never a false refusal
 
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from pincal.auto.pipeline import calibrate
+from pincal.auto.pipeline import calibrate_unjudged
 from pincal.data.dataset import Dataset
 from pincal.identify.kfold import CrossValidation, cross_validate_with
 from pincal.kinematics.models import Model
@@ -34,4 +34,4 @@ def cross_validate(
         **options: passed to :func:`pincal.calibrate`; each fold fits what its poses identify
             (``partial=True``: a fold may lack the variety of the whole).
     """
-    return cross_validate_with(calibrate, robot, data, model, measure, folds, seed, **options)
+    return cross_validate_with(calibrate_unjudged, robot, data, model, measure, folds, seed, **options)

@@ -11,7 +11,7 @@ from pincal.auto.diagnosis import (
     Diagnosis,
     diagnose_with,
 )
-from pincal.auto.pipeline import calibrate
+from pincal.auto.pipeline import calibrate_unjudged
 from pincal.data.dataset import Dataset
 from pincal.kinematics.effects import Extension, Payload
 from pincal.robot.robots import Robot
@@ -47,6 +47,7 @@ def diagnose(
             :data:`~pincal.auto.diagnosis.QUICK_GAIN` (the others are listed as screened).
         **options: passed to :func:`pincal.calibrate` (registration, tool, ...).
     """
+    fit = calibrate_unjudged
     return diagnose_with(
-        calibrate, robot, data, model, measure, folds, seed, effects, payload, progress, quick, **options
+        fit, robot, data, model, measure, folds, seed, effects, payload, progress, quick, **options
     )

@@ -27,6 +27,7 @@ from pincal.identify.kfold import cross_validate_with
 from pincal.identify.solver import Setup, assess, identifiable_set, register, screen_outliers, set_up, solve
 from pincal.kinematics.effects import Extension
 from pincal.kinematics.models import Model
+from pincal.plausibility.judge import judge_calibration
 from pincal.robot.robots import Robot
 from pincal.threads import limited
 
@@ -76,7 +77,48 @@ def calibrate(
     progress: Callable[[int, int, str], None] | None = None,
     **changes: Any,
 ) -> Calibration:
-    """Identify a kinematic model from measurements.
+    """Identify a kinematic model from measurements, and judge whether it can describe a real arm.
+
+    Args:
+        robot, data, test: the chain (:func:`pincal.load_robot`), fitted and held-out poses.
+        model: ``placements``, ``poe``, ``mdh``, ``offsets`` or a :class:`~pincal.kinematics.models.Model`.
+        measure: ``position``, ``pose``, ``distance`` or ``points`` (default: by the columns).
+        options: every other choice (:class:`~pincal.auto.settings.CalibrateOptions`: the set-up,
+            the fit, what to fit and how it is chosen, what is delivered).
+        progress: called as ``progress(done, total, label)`` by the diagnosis and the nested
+            cross-validation.
+        **changes: any field of :class:`~pincal.auto.settings.CalibrateOptions` by name
+            (``params="auto"``, ``extension="auto"``, ``loss="huber"``...), replacing it.
+
+    Returns:
+        The calibration, its ``plausibility`` the verdict of
+        :func:`pincal.plausibility.judge.judge_calibration` (``pincal calibrate`` refuses an
+        implausible one, and so do the writers unless ``accept_implausible=True``).
+
+    Raises:
+        DataError, IdentifiabilityError: unusable input (names, data), too little information.
+    """
+    cal = calibrate_unjudged(
+        robot, data, model, measure, test=test, options=options, progress=progress, **changes
+    )
+    loss = CalibrateOptions.of(options, changes).loss
+    return replace(cal, plausibility=judge_calibration(cal, data, loss=loss))
+
+
+@limited
+def calibrate_unjudged(
+    robot: Robot,
+    data: Dataset,
+    model: str | Model = "placements",
+    measure: str | None = None,
+    *,
+    test: Dataset | None = None,
+    options: CalibrateOptions | None = None,
+    progress: Callable[[int, int, str], None] | None = None,
+    **changes: Any,
+) -> Calibration:
+    """:func:`calibrate` without its plausibility verdict: what the calls inside a calibration
+    (the diagnosis' and the cross-validations' folds) fit with.
 
     Args:
         robot, data, test: the chain (:func:`pincal.load_robot`), fitted and held-out poses.
@@ -123,7 +165,7 @@ def _chosen(
     setup = set_up(robot, data, model, measure, extension=given, **opts.setup())
     nominal, every = _checked(setup, wanted, opts)  # for "auto": refuse what "all" refuses
     start = nominal if given is None else None
-    choice = choose(setup, wanted, ext, fit=calibrate, options=opts, progress=progress, start=start)
+    choice = choose(setup, wanted, ext, fit=calibrate_unjudged, options=opts, progress=progress, start=start)
     if wanted == "auto" or ext == "auto":
         checked = wanted == "auto"  # every parameter passed the rank check: so does any subset
         if choice.extension is not None and given is None:
@@ -228,7 +270,7 @@ def _without(
     """The call ``asked`` again without the poses ``bad`` (scores [m]), which it records."""
     keep = np.setdiff1d(np.arange(len(data)), bad)
     again = replace(asked, pairs=_kept_pairs(asked.pairs, len(data), keep), outliers=None)
-    cal = calibrate(robot, data.subset(keep), *what, test=test, options=again, progress=progress)
+    cal = calibrate_unjudged(robot, data.subset(keep), *what, test=test, options=again, progress=progress)
     rows = data.row_numbers[bad]
     return replace(cal, excluded=tuple((int(r), float(s) * 1e3) for r, s in zip(rows, scores[bad])))
 
@@ -247,7 +289,7 @@ def _judge(
     del inner["folds"], inner["seed"]  # the folds of the whole call; inside it, the defaults
     model, measure = what
     return lambda: cross_validate_with(
-        calibrate, robot, data, model, measure, asked.folds, asked.seed, progress=progress, **inner
+        calibrate_unjudged, robot, data, model, measure, asked.folds, asked.seed, progress=progress, **inner
     )
 
 

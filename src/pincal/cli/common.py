@@ -7,6 +7,7 @@ import argparse
 import os
 import sys
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -207,16 +208,18 @@ def check_applicable(args: argparse.Namespace, data: Dataset) -> None:
         warn(args, f"ignored for {kind} data: " + "; ".join(ignored))
 
 
-def plausible(cal: Calibration, data: Dataset, args: argparse.Namespace) -> Verdict:
-    """The plausibility verdict on a fit (:mod:`pincal.plausibility.judge`): raised as an error when
-    the fit cannot be right, or said as a warning with ``--accept-implausible``."""
+def plausible(cal: Calibration, data: Dataset, args: argparse.Namespace) -> tuple[Calibration, Verdict]:
+    """The fit with its plausibility verdict (:mod:`pincal.plausibility.judge`) judged as
+    :func:`pincal.calibrate` judges it, knowing also how the data was read (so that a hint names
+    the reading to change); raised as an error when the fit cannot be right, or said as a warning
+    with ``--accept-implausible``."""
     order = args.quaternion_order
     verdict = judge_calibration(cal, data, degrees=args.degrees, quaternion_order=order, loss=args.loss)
     if not verdict.plausible:
         if not args.accept_implausible:
             raise ImplausibleError(verdict.message())
         warn(args, verdict.warning())
-    return verdict
+    return replace(cal, plausibility=verdict), verdict
 
 
 class ProgressBar:

@@ -68,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
     for cand in result.candidates[:5]:
         print(f"  {cand.extension.label:42s} CV RMS {cand.cv_rms_mm:.4f} mm  F-test p = {cand.p_value:.2g}")
     print(result.summary())
-    verdict = plausible(cal, data, args)  # the model calibrate would export, as calibrate judges it
+    cal, verdict = plausible(cal, data, args)  # the model calibrate would export, as calibrate judges it
     found = outcome(cal, data, None, args.noise, args.folds, args.seed)
     print(f"residual: {found.residual.sentence()}; {found.residual.how}")
     if found.caveat():

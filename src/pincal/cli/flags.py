@@ -12,6 +12,7 @@ import re
 
 #: The flag of each library argument a message may name.
 FLAGS = {
+    "accept_implausible": "--accept-implausible",
     "add_frame": "--add-frame",
     "band": "--static-band",
     "candidates": "--candidates",

@@ -10,7 +10,7 @@ from pincal.cli.common import check_outputs, locked_robot, urdf_path, warn
 from pincal.data.dataset import UNITS, atomic_write
 from pincal.errors import DataError, ImplausibleError
 from pincal.json_text import json_text
-from pincal.plausibility.tool_plausibility import judge_tool
+from pincal.tool.plausibility import judge_tool
 from pincal.tool.tcp import calibrate_tool, read_flange_poses
 
 

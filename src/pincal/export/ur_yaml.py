@@ -92,16 +92,28 @@ def is_yaml(path: str | Path | None) -> bool:
 
 
 def write_ur_kinematics(
-    cal: Calibration, path: str | Path, calibration_hash: str | None = None
+    cal: Calibration,
+    path: str | Path,
+    calibration_hash: str | None = None,
+    *,
+    accept_implausible: bool = False,
 ) -> tuple[Path, Path]:
     """Write the calibration as a UR kinematics YAML and its sidecar ``<stem>.calibration.json``
     (registration and tool), atomically.
 
+    Args:
+        cal: the calibration of a UR robot in ``ur_description``'s frames.
+        path: the YAML to write; the sidecar goes beside it.
+        calibration_hash: the controller calibration's hash this one refines (its source file's).
+        accept_implausible: write a calibration its plausibility verdict refuses.
+
     Raises:
         DataError: not a UR robot in ``ur_description``'s frames, or the output folder is missing.
+        ImplausibleError: the calibration cannot describe a real arm (``cal.plausibility``).
     """
-    from pincal.export.urdf_writer import check_output, sidecar, sidecar_path
+    from pincal.export.urdf_writer import check_output, check_plausible, sidecar, sidecar_path
 
+    check_plausible(cal, accept_implausible)
     path = Path(path)
     check_output(path, cal.robot)
     kinematics = calibrated_ur_kinematics(cal, calibration_hash)

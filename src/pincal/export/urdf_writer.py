@@ -32,7 +32,7 @@ import numpy as np
 import pinocchio as pin
 from lxml import etree
 
-from pincal.errors import DataError, PincalError
+from pincal.errors import DataError, ImplausibleError, PincalError
 from pincal.files import atomic_write_many
 from pincal.identify.calibration import Calibration
 from pincal.json_text import json_text
@@ -266,16 +266,35 @@ def check_output(path: Path, robot: Robot) -> None:
 
 
 def write_corrected_urdf(
-    cal: Calibration, path: str | Path, add_frame: str | None = None
+    cal: Calibration, path: str | Path, add_frame: str | None = None, *, accept_implausible: bool = False
 ) -> tuple[Path, Path]:
     """Write the corrected URDF and its sidecar ``<stem>.calibration.json``, both or neither.
 
+    Args:
+        cal: the calibration (:func:`pincal.calibrate`).
+        path: the URDF to write; the sidecar goes beside it.
+        add_frame: a frame to add at the calibrated tool point, on the tip link.
+        accept_implausible: write a calibration its plausibility verdict refuses.
+
     Raises:
         DataError: the output is the input URDF, or its folder does not exist.
+        ImplausibleError: the calibration cannot describe a real arm (``cal.plausibility``).
     """
+    check_plausible(cal, accept_implausible)
     files = corrected_files(cal, path, add_frame)
     atomic_write_many(files)
     return files[0][0], files[1][0]
+
+
+def check_plausible(cal: Calibration, accept_implausible: bool = False) -> None:
+    """Refuse to write a calibration whose plausibility verdict says it cannot be right.
+
+    Raises:
+        ImplausibleError: ``cal.plausibility`` failed and not ``accept_implausible``.
+    """
+    verdict = cal.plausibility
+    if verdict is not None and not verdict.plausible and not accept_implausible:
+        raise ImplausibleError(verdict.message())
 
 
 def corrected_files(

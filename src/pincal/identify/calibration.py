@@ -11,7 +11,7 @@ from pincal.data.dataset import Dataset
 from pincal.identify.evaluation import ErrorStats
 from pincal.identify.identifiability import Identifiability
 from pincal.identify.measurements import Measurement, Problem, unpack
-from pincal.identify.records import Balance, Choice, Guard, PriorChoice
+from pincal.identify.records import Balance, Choice, Guard, Judgement, PriorChoice
 from pincal.kinematics.chain import Chain, forward
 from pincal.kinematics.effects import Extension
 from pincal.kinematics.models import Model
@@ -48,6 +48,8 @@ class Calibration:
             alone stays the best URDF (:mod:`pincal.auto.balance`), else None.
         prior: the pull toward the URDF: its weight and how it was chosen (:mod:`pincal.identify.prior`).
         guard: the fit judged against the nominal model on the fitted poses (:mod:`pincal.identify.guard`).
+        plausibility: whether the result can describe a real arm (:func:`pincal.calibrate` judges
+            it, :mod:`pincal.plausibility.judge`); the writers refuse an implausible one.
     """
 
     model: Model
@@ -75,6 +77,7 @@ class Calibration:
     balance: Balance | None = None
     prior: PriorChoice | None = None
     guard: Guard | None = None
+    plausibility: Judgement | None = None
 
     @property
     def robot(self) -> Robot:

@@ -1,7 +1,7 @@
 """How a calibration was reached: the records a :class:`~pincal.identify.calibration.Calibration` keeps.
 
 The pull toward the URDF (:mod:`pincal.identify.prior`), the guard's judgement
-(:mod:`pincal.identify.guard`), the
+(:mod:`pincal.identify.guard`), the plausibility verdict (:mod:`pincal.plausibility.judge`), the
 weights of the delivered fit (:mod:`pincal.auto.balance`) and the choice of parameters and cause
 (:mod:`pincal.auto.choice`) are decided above the calibration in the layers; their records are
 declared here, below it, so that the calibration that keeps them imports nothing above it. The
@@ -27,6 +27,25 @@ class Choice(Protocol):
 
     def to_dict(self) -> dict[str, Any]:
         """The report's ``choice`` object."""
+
+
+class Judgement(Protocol):
+    """Whether a calibration can describe a real arm (a :class:`~pincal.plausibility.verdict.Verdict`,
+    judged by :func:`pincal.plausibility.judge.judge_calibration`)."""
+
+    @property
+    def plausible(self) -> bool:
+        """Whether every check passed."""
+
+    @property
+    def hint(self) -> str | None:
+        """The likely cause, its fix and the evidence; None when plausible."""
+
+    def message(self) -> str:
+        """The one-line refusal."""
+
+    def to_dict(self) -> dict[str, Any]:
+        """The report's ``plausibility`` object."""
 
 
 @dataclass(frozen=True)

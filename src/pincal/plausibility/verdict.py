@@ -91,11 +91,11 @@ class Verdict:
 
     def message(self) -> str:
         """The one-line refusal."""
-        return f"the {self.what} cannot be right: {self.hint}; pass --accept-implausible to keep it anyway"
+        return f"the {self.what} cannot be right: {self.hint}; pass accept_implausible=True to keep it anyway"
 
     def warning(self) -> str:
-        """The one-line warning when the result is kept anyway (``--accept-implausible``)."""
-        return f"the {self.what} cannot be right, kept as asked (--accept-implausible): {self.hint}"
+        """The one-line warning when the result is kept anyway (``accept_implausible=True``)."""
+        return f"the {self.what} cannot be right, kept as asked (accept_implausible=True): {self.hint}"
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dictionary (the report's ``plausibility``)."""

@@ -141,6 +141,7 @@ def report_dict(
         "choice": None if cal.choice is None else cal.choice.to_dict(),
         "prior": None if cal.prior is None else cal.prior.to_dict(),
         "guard": None if cal.guard is None else cal.guard.to_dict(),
+        "plausibility": None if cal.plausibility is None else cal.plausibility.to_dict(),
         "extension": extension_dict(cal, data),
         **extra,
     }

@@ -174,6 +174,8 @@ def summary(
         )
     lines += choice_lines(cal, data)
     lines += [part.text() for part in (cal.prior, cal.guard) if part is not None]  # issue 31
+    if cal.plausibility is not None and not cal.plausibility.plausible:
+        lines.append(f"plausibility: this calibration cannot be right: {cal.plausibility.hint}")
     if outcome is not None:
         lines.append(f"residual: {outcome.residual.sentence()}; {outcome.residual.how}")
         caveat = outcome.caveat()
