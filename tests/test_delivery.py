@@ -101,7 +101,6 @@ def test_default_urdf_is_as_good_alone_as_the_geometric_fit(get_robot, label: st
     assert cal.test_after.rms_mm < exported.test.rms_mm
 
 
-
 def test_the_reported_parameters_are_those_the_urdf_holds() -> None:
     """On Gao's arm the diagnosis names a cause in a later round, with parameters chosen again
     with it; the balanced delivery fits the geometry alone on the first round's parameters. The
@@ -120,6 +119,7 @@ def test_the_reported_parameters_are_those_the_urdf_holds() -> None:
     report = pincal.report_dict(cal)
     assert report["choice"]["kept"] == list(choice.params)
     assert choice.selection is not None and choice.selection.params == choice.params
+
 
 def _plain_pinocchio_rms_mm(urdf: Path, sidecar: dict, test: pincal.Dataset) -> float:
     """RMS position error [mm] of the URDF alone, computed with Pinocchio only (no pincal code):
