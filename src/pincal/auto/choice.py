@@ -163,13 +163,13 @@ def choice_of(cal: Calibration) -> ModelChoice | None:
 def nested_policy(choice: ModelChoice, n_poses: int) -> str | None:
     """Why a nested cross-validation is skipped by default (None: run it)."""
     if choice.extension_mode == "auto" and choice.extension is not None:
-        return "skipped: with a cause named it would re-run the diagnosis on every fold (pass --nested yes)"
+        return "skipped: with a cause named it would re-run the diagnosis on every fold (pass nested=True)"
     if choice.params_mode != "auto":
         return "skipped: nothing was chosen"
     if n_poses < 2 * choice.folds:
         return f"skipped: fewer than {2 * choice.folds} poses for {choice.folds} folds"
     if n_poses > NESTED_MAX_POSES:
-        return f"skipped: more than {NESTED_MAX_POSES} poses (pass --nested yes to run it)"
+        return f"skipped: more than {NESTED_MAX_POSES} poses (pass nested=True to run it)"
     return None
 
 

@@ -166,7 +166,7 @@ class Diagnosis:
         loaded = any(c.extension.effect in ("joint_compliance", "backlash") for c in self.candidates)
         if loaded or not massless(self.baseline.model.robot):
             return None
-        return "compliance and backlash not tried: the URDF has no masses (lend them with --inertias URDF)"
+        return "compliance and backlash not tried: the URDF has no masses (lend them with inertias=URDF)"
 
     def summary(self) -> str:
         """One line a person can act on."""

@@ -94,7 +94,7 @@ class ResidualVerdict:
                 f"{self.unexplained_mm:.3g} mm unexplained above the noise "
                 f"({self.noise_source} {self.noise_mm:.3g} mm per axis)"
             )
-        return "undetermined: the data cannot tell structure from noise (give --noise MM)"
+        return "undetermined: the data cannot tell structure from noise (give noise_mm=MM)"
 
 
 class HeldOut:

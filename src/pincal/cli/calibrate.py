@@ -22,6 +22,7 @@ from pincal.cli.common import (
     ur_yaml_output,
     urdf_path,
 )
+from pincal.cli.flags import as_flags
 from pincal.cli.pull_options import pull
 from pincal.data.dataset import Dataset
 from pincal.errors import DataError
@@ -131,7 +132,7 @@ def run(args: argparse.Namespace) -> int:
     end_progress(progress)
     cal, _ = plausible(cal, data, args)
     result = outcome(cal, data, test, args.noise, args.folds, args.seed)
-    print(summary(cal, data, test, result))
+    print(as_flags(summary(cal, data, test, result)))
     files: list[tuple[str | Path, str | bytes]] = []
     extra: dict[str, Any] = {}
     if ur_yaml_output(args):
@@ -143,14 +144,18 @@ def run(args: argparse.Namespace) -> int:
         files = list(corrected_files(cal, args.output, args.add_frame))
         extra.update(urdf=str(files[0][0]), sidecar=str(files[1][0]))
     if args.report is not None:
-        files.append((args.report, report_json(cal, data, test, result, **extra)))
+        files.append((args.report, as_flags(report_json(cal, data, test, result, **extra))))
     atomic_write_many(files)  # every output or none
     if "urdf" in extra:
         print(f"corrected URDF written to {extra['urdf']}; registration and tool (not in a URDF) to ", end="")
         print(extra["sidecar"])
     if args.report is not None:
         print(f"report written to {args.report}")
-    print(result.verdict_line(str(args.output) if args.output else None, verdict_warnings(cal, result)))
+    print(
+        as_flags(
+            result.verdict_line(str(args.output) if args.output else None, verdict_warnings(cal, result))
+        )
+    )
     return 0
 
 

@@ -19,6 +19,7 @@ from pincal.cli.common import (
     progress_line,
     urdf_path,
 )
+from pincal.cli.flags import as_flags
 from pincal.data.dataset import atomic_write
 from pincal.errors import DataError, IdentifiabilityError
 from pincal.json_text import json_text
@@ -67,12 +68,12 @@ def run(args: argparse.Namespace) -> int:
     )
     for cand in result.candidates[:5]:
         print(f"  {cand.extension.label:42s} CV RMS {cand.cv_rms_mm:.4f} mm  F-test p = {cand.p_value:.2g}")
-    print(result.summary())
+    print(as_flags(result.summary()))
     cal, verdict = plausible(cal, data, args)  # the model calibrate would export, as calibrate judges it
     found = outcome(cal, data, None, args.noise, args.folds, args.seed)
-    print(f"residual: {found.residual.sentence()}; {found.residual.how}")
+    print(as_flags(f"residual: {found.residual.sentence()}; {found.residual.how}"))
     if found.caveat():
-        print(f"note: {found.caveat()}")
+        print(as_flags(f"note: {found.caveat()}"))
     if args.plots is not None and not result.baseline.measurement.measure.by_pairs:
         name = result.cause.extension.effect if result.cause else found.residual.verdict
         plot = args.plots / f"diagnose_{name}.png"
@@ -81,7 +82,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"plot written to {path}")
     if args.json is not None:
         out = {**result.to_dict(), "plausibility": verdict.to_dict(), "residual": found.residual.to_dict()}
-        atomic_write(args.json, json_text(out))
+        atomic_write(args.json, as_flags(json_text(out)))
         print(f"written to {args.json}")
-    print(found.verdict_line())
+    print(as_flags(found.verdict_line()))
     return 0

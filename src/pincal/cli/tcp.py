@@ -7,6 +7,7 @@ import argparse
 import numpy as np
 
 from pincal.cli.common import check_outputs, locked_robot, urdf_path, warn
+from pincal.cli.flags import as_flags
 from pincal.data.dataset import UNITS, atomic_write
 from pincal.errors import DataError, ImplausibleError
 from pincal.json_text import json_text
@@ -57,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
             "warnings": list(tool.warnings),
             "plausibility": verdict.to_dict(),
         }
-        atomic_write(args.json, json_text(result))
+        atomic_write(args.json, as_flags(json_text(result)))
         print(f"written to {args.json}")
     return 0
 

@@ -32,6 +32,7 @@ def add_template(sub: Any, robot_options: Adder, force: Adder) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run the command; 0 on success."""
     from pincal.cli.common import check_outputs, robot_options, urdf_path
+    from pincal.cli.flags import as_flags
     from pincal.export.template import csv_template
     from pincal.files import atomic_write
     from pincal.robot.robots import load_robot
@@ -39,7 +40,7 @@ def run(args: argparse.Namespace) -> int:
     check_outputs(args, [args.output], {"input URDF": urdf_path(args.robot)})
     robot = load_robot(args.robot, tip=args.tip, **robot_options(args))
     kind = "pose" if args.pose else "points" if args.points else "position"
-    text = csv_template(robot, kind, args.units, args.degrees)
+    text = as_flags(csv_template(robot, kind, args.units, args.degrees))
     if args.output is None:
         print(text, end="")
         return 0

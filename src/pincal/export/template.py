@@ -24,8 +24,8 @@ def csv_template(robot: Robot, kind: str = "position", units: str = "m", degrees
     Returns:
         The text of the file: ``#`` lines on units and options, then the header line.
     """
-    angle = "degrees (pass --degrees)" if degrees else "radians"
-    length = "millimetres (pass --units mm)" if units == "mm" else "metres"
+    angle = "degrees (pass degrees=True)" if degrees else "radians"
+    length = "millimetres (pass units=mm)" if units == "mm" else "metres"
     prismatic = [j for j, p in zip(robot.joint_names, robot.prismatic) if p]
     lines = [
         f"# pincal measurement CSV: {robot.name}, chain to {robot.tip}; one row per pose, values "

@@ -145,12 +145,12 @@ class Guard:
         if self.forced:
             return (
                 f"guard: the data do not support a calibration better than the nominal model ({said}); "
-                "the fit is exported anyway (--force-fit)"
+                "the fit is exported anyway (force_fit=True)"
             )
         return (
             f"guard: the data do not support a calibration better than the nominal model ({said}): "
             "the nominal geometry is exported, with only the registration and tool fitted "
-            "(--force-fit exports the fit)"
+            "(force_fit=True exports the fit)"
         )
 
     def to_dict(self) -> dict[str, Any]:

@@ -99,15 +99,15 @@ def _readings(cal: Calibration, data: Dataset, degrees: bool, quaternion_order: 
             fix = "the data is not in the base frame: drop instrument_frame=base"
             yield "instrument_frame", fix, data, {"instrument_T_base": None}
         if not m.fit_tool:
-            fix = "the measured point is not where --tool-point says: drop --tool-point"
+            fix = "the measured point is not where tool= says: drop tool="
             yield "tool_point", fix, data, {"tool": None}
     if m.measure.orientation and data.quaternions is not None:
         quats = data.quaternions
         if quaternion_order == "xyzw":
-            fix = "the quaternion looks like w,x,y,z: drop --quaternion-order xyzw"
+            fix = "the quaternion looks like w,x,y,z: drop quaternion_order=xyzw"
             yield "quaternion_wxyz", fix, replace(data, quaternions=quats[:, [1, 2, 3, 0]]), {}
         else:
-            fix = "quaternion looks like x,y,z,w: pass --quaternion-order xyzw"
+            fix = "quaternion looks like x,y,z,w: pass quaternion_order=xyzw"
             yield "quaternion_xyzw", fix, replace(data, quaternions=quats[:, [3, 0, 1, 2]]), {}
 
 

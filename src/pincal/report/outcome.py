@@ -40,7 +40,7 @@ class Outcome:
         if joint is not None and joint < 0.8 * self.residual.cv_rms_mm:
             said = (
                 f"{head}: part of it is what the URDF alone cannot share with the sidecar: fitted together "
-                f"with the geometry (--geometry joint) the cause leaves {joint:.3g} mm (cross-validated), "
+                f"with the geometry (deliver=joint) the cause leaves {joint:.3g} mm (cross-validated), "
                 "but that URDF is worse alone"
             )
             floor = self.residual.floor_mm

@@ -20,10 +20,10 @@ def _spread(cal: Calibration, data: Dataset) -> float:
     return point_spread(cal.model, cal.measurement, cal.theta, data, cal.extension)
 
 
-#: Said of a cause named with ``--model offsets``, which fits no geometry.
+#: Said of a cause named with ``model=offsets``, which fits no geometry.
 OFFSETS_CAUSE = (
-    "--model offsets fits no geometry: the effect may stand in for joint placement errors; "
-    "see whether --model placements names it too"
+    "model=offsets fits no geometry: the effect may stand in for joint placement errors; "
+    "see whether model=placements names it too"
 )
 
 

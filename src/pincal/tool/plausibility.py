@@ -122,4 +122,4 @@ def _tool_readings(rotations: np.ndarray) -> Iterator[tuple[str, str, np.ndarray
     quats = quaternions(rotations)  # (w, x, y, z) as read: the file's columns in that order
     alt = quats[:, [3, 0, 1, 2]]
     matrices = np.array([pin.Quaternion(*q).normalized().toRotationMatrix() for q in alt])
-    yield "quaternion_xyzw", "quaternion looks like x,y,z,w: pass --quaternion-order xyzw", matrices
+    yield "quaternion_xyzw", "quaternion looks like x,y,z,w: pass quaternion_order=xyzw", matrices
