@@ -98,53 +98,42 @@ def calibrate(
     Raises:
         DataError, IdentifiabilityError: unusable input (names, data), too little information.
     """
-    cal = calibrate_unjudged(
-        robot, data, model, measure, test=test, options=options, progress=progress, **changes
-    )
-    loss = CalibrateOptions.of(options, changes).loss
-    return replace(cal, plausibility=judge_calibration(cal, data, loss=loss))
+    asked = CalibrateOptions.of(options, changes)
+    cal = _calibrated(robot, data, (model, measure), asked, test, progress)
+    return replace(cal, plausibility=judge_calibration(cal, data, loss=asked.loss))
 
 
 @limited
-def calibrate_unjudged(
+def calibrate_unjudged(robot: Robot, data: Dataset, *what: Any, **options: Any) -> Calibration:
+    """:func:`calibrate` without its plausibility verdict, called as it is (``model``, ``measure``,
+    then keywords): what the calls inside a calibration (the diagnosis' and the
+    cross-validations' folds) fit with."""
+    test, progress = options.pop("test", None), options.pop("progress", None)
+    model = options.pop("model", what[0] if what else "placements")
+    measure = options.pop("measure", what[1] if len(what) > 1 else None)
+    asked = CalibrateOptions.of(options.pop("options", None), options)
+    return _calibrated(robot, data, (model, measure), asked, test, progress)
+
+
+def _calibrated(
     robot: Robot,
     data: Dataset,
-    model: str | Model = "placements",
-    measure: str | None = None,
-    *,
-    test: Dataset | None = None,
-    options: CalibrateOptions | None = None,
-    progress: Callable[[int, int, str], None] | None = None,
-    **changes: Any,
+    what: tuple[str | Model, str | None],
+    asked: CalibrateOptions,
+    test: Dataset | None,
+    progress: Callable[[int, int, str], None] | None,
 ) -> Calibration:
-    """:func:`calibrate` without its plausibility verdict: what the calls inside a calibration
-    (the diagnosis' and the cross-validations' folds) fit with.
-
-    Args:
-        robot, data, test: the chain (:func:`pincal.load_robot`), fitted and held-out poses.
-        model: ``placements``, ``poe``, ``mdh``, ``offsets`` or a :class:`~pincal.kinematics.models.Model`.
-        measure: ``position``, ``pose``, ``distance`` or ``points`` (default: by the columns).
-        options: every other choice (:class:`~pincal.auto.settings.CalibrateOptions`: the set-up,
-            the fit, what to fit and how it is chosen, what is delivered).
-        progress: called as ``progress(done, total, label)`` by the diagnosis and the nested
-            cross-validation.
-        **changes: any field of :class:`~pincal.auto.settings.CalibrateOptions` by name
-            (``params="auto"``, ``extension="auto"``, ``loss="huber"``...), replacing it.
-
-    Raises:
-        DataError, IdentifiabilityError: unusable input (names, data), too little information.
-    """
-    asked = CalibrateOptions.of(options, changes)
+    """The calibration ``asked`` of ``what`` (model and measure) on ``data``, unjudged."""
     wanted, ext = asked.wanted(), asked.effect(robot)
-    setup, choice, wanted, chosen, opts = _chosen(robot, data, (model, measure), wanted, ext, asked, progress)
+    setup, choice, wanted, chosen, opts = _chosen(robot, data, what, wanted, ext, asked, progress)
     found = fit(setup, wanted, **chosen, **opts.fitting())
     bad, scores = screen_outliers(*found.screening, found.free, opts.outliers or 0.0, opts.f_scale)
     if bad.size and choice.diagnosis is not None and choice.diagnosis.candidates:
         bad = _outliers_for_both(setup, choice, bad, wanted, opts)
     if bad.size:  # leave them out and start again: the choice too is made on the poses kept
-        return _without(robot, data, (model, measure), bad, scores, asked, test, progress)
+        return _without(robot, data, what, bad, scores, asked, test, progress)
     if asked.nested is not False:
-        judge = _judge(robot, data, (model, measure), asked, progress)
+        judge = _judge(robot, data, what, asked, progress)
         choice = choice.with_nested(judge, asked.nested is True, len(data))
     return _delivered(found, setup, choice, wanted, test, opts)
 
@@ -270,7 +259,7 @@ def _without(
     """The call ``asked`` again without the poses ``bad`` (scores [m]), which it records."""
     keep = np.setdiff1d(np.arange(len(data)), bad)
     again = replace(asked, pairs=_kept_pairs(asked.pairs, len(data), keep), outliers=None)
-    cal = calibrate_unjudged(robot, data.subset(keep), *what, test=test, options=again, progress=progress)
+    cal = _calibrated(robot, data.subset(keep), what, again, test, progress)
     rows = data.row_numbers[bad]
     return replace(cal, excluded=tuple((int(r), float(s) * 1e3) for r, s in zip(rows, scores[bad])))
 
