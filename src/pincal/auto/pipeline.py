@@ -181,7 +181,7 @@ def _delivered(
     problem = setup.problem
     kind = problem.measurement.kind
     geometry = set_up(problem.model.robot, setup.data, problem.model, kind, **opts.setup())
-    choice = _geometric_choice(geometry, choice, wanted)
+    choice = _geometric_choice(geometry, choice)
     kept = choice.params
     joint = found if kept == wanted else fit(setup, kept, **opts.fitting())  # the same parameters: reused
     return _balanced(setup, geometry, kept, joint, choice, test, opts)
@@ -234,7 +234,7 @@ def _outliers_for_both(
     return np.intersect1d(bad, again)
 
 
-def _geometric_choice(geometry: Setup, choice: ModelChoice, wanted: Any) -> ModelChoice:
+def _geometric_choice(geometry: Setup, choice: ModelChoice) -> ModelChoice:
     """The choice with the parameters of the geometry alone, which the balanced delivery fits
     and the report names: those chosen without a cause (the first round of ``extension="auto"``;
     chosen again for ``params="auto"`` with a given extension); given ones as given."""
