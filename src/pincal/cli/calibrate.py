@@ -130,7 +130,7 @@ def run(args: argparse.Namespace) -> int:
     progress = progress_line("calibration")  # the diagnosis, then the nested cross-validation
     cal = _fit(args, robot, data, test, progress)
     end_progress(progress)
-    cal, _ = plausible(cal, data, args)
+    cal = plausible(cal, data, args)
     result = outcome(cal, data, test, args.noise, args.folds, args.seed)
     print(as_flags(summary(cal, data, test, result)))
     files: list[tuple[str | Path, str | bytes]] = []

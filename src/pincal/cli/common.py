@@ -25,7 +25,7 @@ from pincal.identify.fixed_points import parse_point_distances
 from pincal.identify.kinds import get_kind
 from pincal.inputs import input_named
 from pincal.options import ROTATION_WEIGHT
-from pincal.plausibility.judge import Verdict, judge_calibration
+from pincal.plausibility.judge import judge_calibration
 from pincal.plausibility.past_tip import Reading, check_past_tip
 from pincal.robot.robots import BUNDLED, Robot, bundled_urdf, load_robot
 
@@ -208,18 +208,20 @@ def check_applicable(args: argparse.Namespace, data: Dataset) -> None:
         warn(args, f"ignored for {kind} data: " + "; ".join(ignored))
 
 
-def plausible(cal: Calibration, data: Dataset, args: argparse.Namespace) -> tuple[Calibration, Verdict]:
-    """The fit with its plausibility verdict (:mod:`pincal.plausibility.judge`) judged as
-    :func:`pincal.calibrate` judges it, knowing also how the data was read (so that a hint names
-    the reading to change); raised as an error when the fit cannot be right, or said as a warning
-    with ``--accept-implausible``."""
+def plausible(cal: Calibration, data: Dataset, args: argparse.Namespace) -> Calibration:
+    """The fit with the plausibility verdict :func:`pincal.calibrate` gave it
+    (:mod:`pincal.plausibility.judge`); a fit that cannot be right is judged again knowing how
+    the data was read (so that the hint names the reading to change), and raised as an error, or
+    said as a warning with ``--accept-implausible``."""
+    if cal.plausibility is not None and cal.plausibility.plausible:
+        return cal
     order = args.quaternion_order
     verdict = judge_calibration(cal, data, degrees=args.degrees, quaternion_order=order, loss=args.loss)
     if not verdict.plausible:
         if not args.accept_implausible:
             raise ImplausibleError(verdict.message())
         warn(args, verdict.warning())
-    return replace(cal, plausibility=verdict), verdict
+    return replace(cal, plausibility=verdict)
 
 
 class ProgressBar:

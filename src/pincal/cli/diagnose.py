@@ -69,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
     for cand in result.candidates[:5]:
         print(f"  {cand.extension.label:42s} CV RMS {cand.cv_rms_mm:.4f} mm  F-test p = {cand.p_value:.2g}")
     print(as_flags(result.summary()))
-    cal, verdict = plausible(cal, data, args)  # the model calibrate would export, as calibrate judges it
+    cal = plausible(cal, data, args)  # the model calibrate would export, as calibrate judges it
     found = outcome(cal, data, None, args.noise, args.folds, args.seed)
     print(as_flags(f"residual: {found.residual.sentence()}; {found.residual.how}"))
     if found.caveat():
@@ -81,7 +81,12 @@ def run(args: argparse.Namespace) -> int:
         path = plot_diagnosis(result, data, plot, found.residual)
         print(f"plot written to {path}")
     if args.json is not None:
-        out = {**result.to_dict(), "plausibility": verdict.to_dict(), "residual": found.residual.to_dict()}
+        assert cal.plausibility is not None  # plausible() gives every fit its verdict
+        out = {
+            **result.to_dict(),
+            "plausibility": cal.plausibility.to_dict(),
+            "residual": found.residual.to_dict(),
+        }
         atomic_write(args.json, as_flags(json_text(out)))
         print(f"written to {args.json}")
     print(as_flags(found.verdict_line()))
