@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
+from mukca import DISTANCE, URDFS
 
 import pincal
 from pincal.data.dataset import Dataset
@@ -38,8 +39,6 @@ from pincal.data.point_files import read_socket_folder
 from pincal.identify.measurements import Problem
 from pincal.kinematics.effects import gravity_torques
 
-URDFS = {"panda": "panda.urdf", "kuka": "iiwa14.urdf", "dinova": "gen3lite.urdf"}
-DISTANCE = (("0", "1", 0.05),)  # [m] between the sockets
 #: Joint-space error models: each maps (q, gravity torques) to regressors (N, n) per joint.
 Basis = Callable[[np.ndarray, np.ndarray], list[np.ndarray]]
 MODELS: dict[str, Basis] = {
