@@ -458,9 +458,18 @@ def test_demo(capsys: pytest.CaptureFixture[str]) -> None:
         assert re.search(rf"^\s+{model}\s+\d+ of", run.out, re.MULTILINE), model
     gain = re.search(r"gain ([0-9.]+)x on the URDF as is .*the geometry alone ([0-9.]+)x", run.out)
     assert gain is not None
-    # the command's default names a cause on this arm, and it beats the geometry alone
-    assert "pincal calibrate's default: + joint_compliance" in run.out
+    # the command's default names a cause on this arm: its URDF alone is no worse than the geometry
+    # alone with every parameter, and with its sidecar it beats both
+    assert "the URDF with its sidecar (+ joint_compliance" in run.out
     assert float(gain.group(1)) > float(gain.group(2)) >= 3.0
+    means = {
+        label.strip(): float(mean)
+        for label, mean in re.findall(r"^ {3}(\S.{53}) +([0-9.]+) +[0-9.]+$", run.out, re.MULTILINE)
+    }
+    geometry = means["calibrated, geometry only (every parameter)"]
+    alone = means["pincal calibrate's default: the URDF alone"]
+    full = next(v for k, v in means.items() if k.startswith("the URDF with its sidecar"))
+    assert full < alone <= geometry
 
 
 def test_twists_mrres5(capsys: pytest.CaptureFixture[str]) -> None:

@@ -101,24 +101,26 @@ def test_default_urdf_is_as_good_alone_as_the_geometric_fit(get_robot, label: st
     assert cal.test_after.rms_mm < exported.test.rms_mm
 
 
-def test_the_reported_parameters_are_those_the_urdf_holds() -> None:
+def test_the_reported_parameters_are_those_each_deliverable_holds() -> None:
     """On Gao's arm the diagnosis names a cause in a later round, with parameters chosen again
-    with it; the balanced delivery fits the geometry alone on the first round's parameters. The
-    report names those (not the later round's), and they are exactly the corrections the
-    delivered geometry holds: every other parameter stays nominal."""
+    with it. The full model (the sidecar's) holds that round's parameters, fitted with the cause;
+    the URDF holds the geometry alone on the first round's parameters. The report names each set,
+    and they are exactly the corrections each delivered geometry holds: every other parameter
+    stays nominal."""
     data, _ = pincal.gao2013_data()
     robot = pincal.load_robot("mrres5")
     cal = pincal.calibrate(robot, data, "poe", "distance", params="auto", extension="auto")
-    choice = cal.choice
+    choice, alone = cal.choice, cal.urdf_fit
     assert choice is not None and choice.params is not None and cal.extension is not None
+    assert alone is not None and alone.choice is not None and alone.extension is None
     assert len(choice.rounds) > 1 and choice.rounds[-1].params != choice.rounds[0].params
-    assert choice.params == choice.rounds[0].params
+    assert alone.choice.params == choice.rounds[0].params != choice.params
     names = np.array(cal.model.names)
-    moved = set(names[np.abs(cal.x) > 0])
-    assert moved == set(choice.params)
+    assert set(names[np.abs(cal.x) > 0]) == set(choice.params)
+    assert set(names[np.abs(alone.x) > 0]) == set(alone.choice.params)
     report = pincal.report_dict(cal)
     assert report["choice"]["kept"] == list(choice.params)
-    assert choice.selection is not None and choice.selection.params == choice.params
+    assert report["choice"]["urdf_kept"] == list(alone.choice.params)
 
 
 def _plain_pinocchio_rms_mm(urdf: Path, sidecar: dict, test: pincal.Dataset) -> float:

@@ -110,6 +110,10 @@ HIDDEN_CASES = [
     ("panda", "backlash:panda_joint2", 115, 0.50e-3),
     ("panda", "backlash:panda_joint4", 116, 0.75e-3),
     ("ur5", "gear_harmonic2:wrist_2_joint", 117, 0.45e-3),
+    ("ur5", "lost_motion:shoulder_lift_joint", 118, 0.40e-3),
+    ("ur5", "lost_motion:wrist_2_joint", 119, 0.55e-3),
+    ("panda", "lost_motion:panda_joint2", 120, 0.45e-3),
+    ("panda", "lost_motion:panda_joint6", 121, 0.35e-3),
 ]
 
 

@@ -31,10 +31,12 @@ from pincal.identify.calibration import Calibration
 from pincal.identify.forward_selection import Selection, select_on
 from pincal.identify.kfold import CrossValidation, Fit
 from pincal.identify.solver import Setup, set_up
-from pincal.kinematics.effects import Extension
+from pincal.kinematics.effects import AnyEffect, combined
 
 #: Rounds of selection and diagnosis for ``extension="auto"``.
 MAX_ROUNDS = 3
+#: Causes ``extension="auto"`` names at most, each added only where it pays on held-out poses.
+MAX_CAUSES = 3
 #: Nested cross-validation runs by default up to this many poses (it costs K selections and fits).
 NESTED_MAX_POSES = 60
 
@@ -87,14 +89,16 @@ class ModelChoice:
         nested_note: why it did not run, or how it ran.
         skipped: why ``extension="auto"``'s diagnosis did not run (too few poses for its folds).
         geometry_selection: the first round's selection, the geometry alone's (``extension="auto"``
-            with ``params="auto"``): the parameters a balanced delivery fits.
+            with ``params="auto"``): the parameters the URDF alone holds.
+        more: the diagnoses that named each further cause (the second, the third), in order;
+            :attr:`extension` then holds every cause.
     """
 
     params_mode: str
     params: tuple[str, ...] | None
     selection: Selection | None
     extension_mode: str
-    extension: Extension | None
+    extension: AnyEffect | None
     diagnosis: Diagnosis | None = field(default=None, repr=False)
     rounds: tuple[Round, ...] = ()
     folds: int = 5
@@ -103,6 +107,7 @@ class ModelChoice:
     nested_note: str = "not asked for"
     skipped: str | None = None
     geometry_selection: Selection | None = field(default=None, repr=False)
+    more: tuple[Diagnosis, ...] = field(default=(), repr=False)
 
     def with_nested(self, judge: Callable[[], CrossValidation], forced: bool, n_poses: int) -> ModelChoice:
         """This choice with the nested cross-validation ``judge()`` run (always when ``forced``,
@@ -123,8 +128,21 @@ class ModelChoice:
 
     @property
     def gain(self) -> float:
-        """Cross-validated RMS of the geometric baseline / with the cause (1 without one)."""
-        return self.diagnosis.gain if self.diagnosis is not None and self.extension is not None else 1.0
+        """Cross-validated RMS of the geometric baseline / with every cause (1 without one)."""
+        if self.diagnosis is None or self.extension is None:
+            return 1.0
+        last = self.more[-1] if self.more else self.diagnosis
+        return self.diagnosis.baseline_cv_rms_mm / last.extended_cv_rms_mm
+
+    def steps(self) -> list[tuple[str, float, float]]:
+        """Each named cause with the cross-validated RMS [mm] before and after it was added."""
+        if self.diagnosis is None or self.diagnosis.cause is None:
+            return []
+        return [
+            (d.cause.extension.label, d.baseline_cv_rms_mm, d.extended_cv_rms_mm)
+            for d in (self.diagnosis, *self.more)
+            if d.cause is not None
+        ]
 
     def to_dict(self) -> dict[str, Any]:
         """The report's ``choice`` object."""
@@ -141,6 +159,10 @@ class ModelChoice:
             "extension": self.extension_mode,
             "cause": self.extension.label if self.extension else "none",
             "cause_gain": self.gain,
+            "causes": [
+                {"cause": label, "cv_rms_mm_before": before, "cv_rms_mm_after": after}
+                for label, before, after in self.steps()
+            ],
             "diagnosis": None if diag is None else diag.to_dict(),
             "rounds": [r.to_dict() for r in self.rounds],
             "nested": None
@@ -188,7 +210,7 @@ def _select(
 def choose(
     setup: Setup,
     wanted: tuple[str, ...] | str | None,
-    extension: Extension | str | None,
+    extension: AnyEffect | str | None,
     *,
     fit: Fit,
     options: CalibrateOptions,
@@ -218,7 +240,7 @@ def choose(
     measure = setup.problem.measurement.kind
     rounds: list[Round] = []
     kept: tuple[float, ModelChoice] | None = None
-    cause: Extension | None = None
+    cause: AnyEffect | None = None
     for _ in range(MAX_ROUNDS):
         try:
             diag = diagnose_with(
@@ -254,4 +276,46 @@ def choose(
     first = base.selection
     if kept is None:
         return replace(base, diagnosis=diag, rounds=tuple(rounds), geometry_selection=first)
-    return replace(kept[1], rounds=tuple(rounds), geometry_selection=first)
+    chosen = replace(kept[1], rounds=tuple(rounds), geometry_selection=first)
+    return _more_causes(chosen, setup, fit, options, progress)
+
+
+def _more_causes(
+    choice: ModelChoice,
+    setup: Setup,
+    fit: Fit,
+    options: CalibrateOptions,
+    progress: Callable[[int, int, str], None] | None,
+) -> ModelChoice:
+    """``choice`` with the further causes that pay, each sought by a diagnosis whose baseline
+    holds the causes named before it (on the parameters chosen with the first), at most
+    :data:`MAX_CAUSES` in all, and each counted in the F-test's correction."""
+    assert choice.extension is not None
+    robot, data, model = setup.model.robot, setup.data, setup.model
+    effects, steps = choice.extension, []
+    for step in range(2, MAX_CAUSES + 1):
+        try:
+            diag = diagnose_with(
+                fit,
+                robot,
+                data,
+                model,  # type: ignore[arg-type]
+                setup.problem.measurement.kind,
+                options.folds,
+                options.seed,
+                payload=options.payload,
+                progress=progress,
+                quick=True,
+                params=None if choice.params is None else list(choice.params),
+                given=effects,
+                step=step,
+                **options.setup(),
+                **options.fitting(),
+            )
+        except IdentifiabilityError:  # the folds cannot fit one more effect
+            break
+        if diag.cause is None:
+            break
+        effects = combined([*effects.parts, diag.cause.extension])
+        steps.append(diag)
+    return replace(choice, extension=effects, more=tuple(steps))

@@ -34,7 +34,7 @@ from pincal.identify.evaluation import ErrorStats, evaluate
 from pincal.identify.identifiability import Identifiability
 from pincal.identify.measurements import Measurement, Problem
 from pincal.identify.solver import Setup, assess, natural_scale, register, solve
-from pincal.kinematics.effects import Extension
+from pincal.kinematics.effects import AnyEffect
 from pincal.kinematics.mdh import make_model
 from pincal.robot.robots import Robot, load_robot
 
@@ -47,13 +47,13 @@ def corrected_robot(cal: Calibration) -> Robot:
         return load_robot(path, tip=cal.robot.tip, joints=cal.robot.joint_names)
 
 
-def on_robot(extension: Extension, robot: Robot) -> Extension:
-    """The same effect with its gravity torques computed on ``robot``."""
-    return Extension(robot, extension.effect, extension.joint, extension.harmonic, extension.payload)
+def on_robot(extension: AnyEffect, robot: Robot) -> AnyEffect:
+    """The same effects with their gravity torques computed on ``robot``."""
+    return extension.on(robot)
 
 
 def effect_on_top(
-    geometry: Calibration, extension: Extension, data: Dataset, test: Dataset | None
+    geometry: Calibration, extension: AnyEffect, data: Dataset, test: Dataset | None
 ) -> Calibration:
     """The effect fitted on top of a geometric calibration, which stays as it is.
 
@@ -86,7 +86,7 @@ def settled(cal: Calibration, data: Dataset, test: Dataset | None) -> Calibratio
 
 def _effect_refitted(
     geometry: Calibration,
-    extension: Extension,
+    extension: AnyEffect,
     theta: np.ndarray,
     ident: Identifiability,
     data: Dataset,
@@ -140,6 +140,7 @@ def _score(loaded: CalibratedRobot, cal: Calibration, data: Dataset | None, full
     extension applied only when ``full``."""
     if data is None:
         return None
+    loaded = loaded if full else loaded.alone
     model = make_model("placements", loaded.robot)
     reg = loaded.instrument_T_base
     meas: Measurement = replace(
@@ -150,7 +151,7 @@ def _score(loaded: CalibratedRobot, cal: Calibration, data: Dataset | None, full
         fit_tool=False,
         pairs=None,
     )
-    ext = loaded.extension if full else None
+    ext = loaded.extension
     problem = Problem(model, meas, data, ext)
     theta = problem.initial_theta()
     theta[model.n_params : problem.n_model] = loaded.effect if ext is not None else []

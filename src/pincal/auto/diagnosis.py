@@ -31,10 +31,12 @@ from pincal.data.dataset import Dataset
 from pincal.identify.calibration import Calibration
 from pincal.identify.kfold import Fit, cross_validate_with
 from pincal.kinematics.effects import (
+    AnyEffect,
     Extension,
     Payload,
     Stiffness,
     candidates,
+    combined,
     compliance_stiffness,
     implausible,
     massless,
@@ -84,8 +86,8 @@ class Candidate:
     @property
     def params(self) -> np.ndarray:
         """The effect's parameters (in the extension's units)."""
-        if self.calibration is not None:
-            return self.calibration.effect_params
+        if self.calibration is not None:  # the effects already held come first
+            return self.calibration.effect_params[-self.extension.n_params :]
         return np.zeros(self.extension.n_params) if self.screened_params is None else self.screened_params
 
     def stiffness(self, q: np.ndarray | None = None) -> Stiffness | None:
@@ -134,6 +136,7 @@ class Diagnosis:
         q: the data's commanded configurations (N, n), to read a compliance as a stiffness.
         rejected: candidates that paid on held-out poses but whose identified value is
             implausible for the effect named (:func:`pincal.kinematics.effects.implausible`), best first.
+        given: the effects the baseline already held (a cause sought after others), or None.
     """
 
     baseline: Calibration = field(repr=False)
@@ -143,6 +146,7 @@ class Diagnosis:
     folds: int
     q: np.ndarray | None = field(default=None, repr=False, compare=False)
     rejected: tuple[Candidate, ...] = ()
+    given: AnyEffect | None = field(default=None, repr=False)
 
     @property
     def extended(self) -> Calibration:
@@ -295,15 +299,21 @@ def diagnose_with(
     payload: Payload | None = None,
     progress: Callable[[int, int, str], None] | None = None,
     quick: bool = False,
+    given: AnyEffect | None = None,
+    step: int = 1,
     **options: Any,
 ) -> Diagnosis:
     """:func:`pincal.auto.diagnose.diagnose` (its arguments and answer) with the calibration ``fit``,
-    called as ``fit(robot, data, model, measure, **options)``."""
+    called as ``fit(robot, data, model, measure, **options)``; with ``given``, the baseline holds
+    those effects and each candidate is added to them (the ``step``-th cause sought: the F-test's
+    correction counts the candidates of every step)."""
     options = {k: v for k, v in options.items() if k != "extension"}
     options["deliver"] = "none"  # a cause is named by the joint fit of geometry and effect
-    pool = candidates(robot, payload) if effects is None else effects
-    base = fit(robot, data, model, measure, **options)  # first: says if the data falls short
-    base_cv = cross_validate_with(fit, robot, data, model, measure, folds, seed, **options)
+    held = given.parts if given is not None else ()
+    taken = {e.label for e in held}
+    pool = [e for e in (candidates(robot, payload) if effects is None else effects) if e.label not in taken]
+    base = fit(robot, data, model, measure, extension=given, **options)  # first: says if the data falls short
+    base_cv = cross_validate_with(fit, robot, data, model, measure, folds, seed, extension=given, **options)
     lin = Linearised(base, data, folds, seed)
     total = len(pool) + min(FINALISTS, len(pool))
     screens = []
@@ -320,14 +330,15 @@ def diagnose_with(
     if quick:
         n_final = sum(base_rms / s.cv_rms_mm >= QUICK_GAIN for _, s in screens[:n_final])
     for k, (ext, _) in enumerate(screens[:n_final]):
-        full = fit(robot, data, model, measure, extension=ext, **options)
+        both = combined([*held, ext])
+        full = fit(robot, data, model, measure, extension=both, **options)
         if progress is not None:
             progress(len(pool) + k + 1, total, f"{ext.label} (nonlinear)")
         if not full.identifiability.identifiable[
-            full.model.n_params : full.model.n_params + ext.n_params
+            full.model.n_params : full.model.n_params + ext.n_params + sum(e.n_params for e in held)
         ].all():
             continue
-        cv = cross_validate_with(fit, robot, data, model, measure, folds, seed, extension=ext, **options)
+        cv = cross_validate_with(fit, robot, data, model, measure, folds, seed, extension=both, **options)
         finalists.append(Candidate(ext, cv.after.rms_mm, _f_test(base, full, data), full, data.q))
     finalists.sort(key=lambda c: c.cv_rms_mm)
     screened = [
@@ -335,7 +346,8 @@ def diagnose_with(
         for ext, s in screens[n_final:]
     ]
     judged = finalists + screened
-    paying = [c for c in finalists if base_rms / c.cv_rms_mm >= MIN_GAIN and c.p_value < ALPHA / len(judged)]
+    family = len(judged) * step
+    paying = [c for c in finalists if base_rms / c.cv_rms_mm >= MIN_GAIN and c.p_value < ALPHA / family]
     rejected = tuple(c for c in paying if c.implausible is not None)
     cause = next((c for c in paying if c.implausible is None), None)
-    return Diagnosis(base, base_rms, cause, tuple(judged), folds, data.q, rejected)
+    return Diagnosis(base, base_rms, cause, tuple(judged), folds, data.q, rejected, given)

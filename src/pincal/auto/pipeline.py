@@ -25,7 +25,7 @@ from pincal.identify.guard import DEFAULT_PULL, Protected, Pull, protect
 from pincal.identify.identifiability import RCOND, Identifiability
 from pincal.identify.kfold import cross_validate_with
 from pincal.identify.solver import Setup, assess, identifiable_set, register, screen_outliers, set_up, solve
-from pincal.kinematics.effects import Extension
+from pincal.kinematics.effects import AnyEffect, Effects, Extension
 from pincal.kinematics.models import Model
 from pincal.plausibility.judge import judge_calibration
 from pincal.robot.robots import Robot
@@ -143,14 +143,14 @@ def _chosen(
     data: Dataset,
     what: tuple[str | Model, str | None],
     wanted: Any,
-    ext: Extension | str | None,
+    ext: AnyEffect | str | None,
     opts: CalibrateOptions,
     progress: Callable[[int, int, str], None] | None,
 ) -> tuple[Setup, ModelChoice, Any, dict[str, Any], CalibrateOptions]:
     """The set-up to fit (``what``: model and measure), what was chosen (:mod:`pincal.auto.choice`),
     the parameters to fit, what the fit may reuse (``nominal``, ``every``) and the options it fits
     with (``partial`` set as the choice allows)."""
-    (model, measure), given = what, ext if isinstance(ext, Extension) else None
+    (model, measure), given = what, ext if isinstance(ext, (Extension, Effects)) else None
     setup = set_up(robot, data, model, measure, extension=given, **opts.setup())
     nominal, every = _checked(setup, wanted, opts)  # for "auto": refuse what "all" refuses
     start = nominal if given is None else None
@@ -176,15 +176,19 @@ def _delivered(
     :class:`~pincal.auto.settings.CalibrateOptions`)."""
     if setup.problem.extension is None or opts.deliver == "none":
         return replace(found.assessed(test), choice=choice)
+    full = replace(found.assessed(test), choice=choice)
     if opts.deliver == "joint":
-        return settled(replace(found.assessed(test), choice=choice), setup.data, test)
+        return settled(full, setup.data, test)
     problem = setup.problem
     kind = problem.measurement.kind
     geometry = set_up(problem.model.robot, setup.data, problem.model, kind, **opts.setup())
-    choice = _geometric_choice(geometry, choice)
-    kept = choice.params
+    geometric = _geometric_choice(geometry, choice)
+    kept = geometric.params
+    if opts.deliver == "complete":  # the URDF: the geometry alone; the sidecar: the full model
+        alone = replace(fit(geometry, kept, **opts.fitting()).assessed(test), choice=geometric)
+        return replace(settled(full, setup.data, test), urdf_fit=alone)
     joint = found if kept == wanted else fit(setup, kept, **opts.fitting())  # the same parameters: reused
-    return _balanced(setup, geometry, kept, joint, choice, test, opts)
+    return _balanced(setup, geometry, kept, joint, geometric, test, opts)
 
 
 def _balanced(
@@ -274,7 +278,8 @@ def _judge(
     """The nested cross-validation of the whole call ``asked``, re-run without each fold (each
     inner call with the default folds and seed, and no nested cross-validation of its own)."""
     pairs = asked.pairs if isinstance(asked.pairs, str) else "all"
-    inner = replace(asked, pairs=pairs, nested=False).keywords()
+    deliver = "joint" if asked.deliver == "complete" else asked.deliver  # the full model: the same fit
+    inner = replace(asked, pairs=pairs, nested=False, deliver=deliver).keywords()
     del inner["folds"], inner["seed"]  # the folds of the whole call; inside it, the defaults
     model, measure = what
     return lambda: cross_validate_with(

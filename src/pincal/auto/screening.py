@@ -24,7 +24,7 @@ from pincal.identify.calibration import Calibration
 from pincal.identify.folds import fold_indices
 from pincal.identify.identifiability import RCOND
 from pincal.identify.measurements import Problem
-from pincal.kinematics.effects import Extension
+from pincal.kinematics.effects import AnyEffect, combined
 
 
 @dataclass(frozen=True)
@@ -68,19 +68,22 @@ class Linearised:
             self.folds.append((train, test, normal))
         self.gram = (self.jac.T @ self.jac, self.jac.T @ self.residuals)
 
-    def extra_columns(self, extension: Extension) -> np.ndarray:
-        """The effect's Jacobian columns at θ̂ (its parameters zero), unit-scaled."""
+    def extra_columns(self, extension: AnyEffect) -> np.ndarray:
+        """The effect's Jacobian columns at θ̂ (its parameters zero), after the effects the base
+        fit already holds."""
         base = self.base
-        n_geo = base.model.n_params
-        problem = Problem(base.model, replace(base.measurement, pairs=None), self.data, extension)
-        theta = np.concatenate([base.theta[:n_geo], np.zeros(extension.n_params), base.theta[n_geo:]])
-        return problem.jacobian(theta, np.arange(n_geo, n_geo + extension.n_params))
+        n_model = base.model.n_params + (base.extension.n_params if base.extension is not None else 0)
+        held = base.extension.parts if base.extension is not None else ()
+        both = combined([*held, *extension.parts])
+        problem = Problem(base.model, replace(base.measurement, pairs=None), self.data, both)
+        theta = np.concatenate([base.theta[:n_model], np.zeros(extension.n_params), base.theta[n_model:]])
+        return problem.jacobian(theta, np.arange(n_model, n_model + extension.n_params))
 
     def _held_out(self, test: np.ndarray, predicted: np.ndarray) -> np.ndarray:
         """Held-out errors [m]: per pose the 3-D position error, per pair the distance error."""
         return self.kind.held_out(predicted)
 
-    def screen(self, extension: Extension | None = None) -> Screen:
+    def screen(self, extension: AnyEffect | None = None) -> Screen:
         """The linearised cross-validation and all-row fit, with ``extension``'s columns or none."""
         extra = np.empty((len(self.residuals), 0)) if extension is None else self.extra_columns(extension)
         e_norms = np.where((n := np.linalg.norm(extra, axis=0)) > 0, n, 1.0)

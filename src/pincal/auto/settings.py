@@ -21,12 +21,12 @@ from pincal.identify.guard import DEFAULT_PULL, Pull
 from pincal.identify.identifiability import RCOND
 from pincal.identify.measurements import ROTATION_WEIGHT
 from pincal.identify.solver import SETUP_KEYS
-from pincal.kinematics.effects import Extension, Payload
+from pincal.kinematics.effects import AnyEffect, Extension, Payload, combined
 from pincal.options import LOSSES
 from pincal.robot.robots import Robot
 
 #: How geometry and an effect share the fit (see :attr:`CalibrateOptions.deliver`).
-DELIVERIES = ("balanced", "joint", "none")
+DELIVERIES = ("complete", "balanced", "joint", "none")
 #: The options of each fit (:func:`pincal.auto.pipeline.fit`'s keywords).
 FITTING = ("partial", "loss", "f_scale", "rcond", "pull")
 
@@ -46,7 +46,8 @@ class CalibrateOptions:
         f_scale: where the robust loss down-weights [m].
         rcond: the rank's relative threshold.
         extension: an effect (:class:`~pincal.kinematics.effects.Extension` or
-            ``EFFECT:JOINT``), ``"auto"`` (the cause the diagnosis names) or None.
+            ``EFFECT:JOINT``), several (:class:`~pincal.kinematics.effects.Effects` or
+            ``EFFECT:JOINT+EFFECT:JOINT``), ``"auto"`` (the causes the diagnosis names) or None.
         params: None or ``"all"`` (every identifiable parameter), ``"auto"`` (chosen by
             cross-validation on the fitted poses) or parameter names.
         outliers: leave out poses this many robust σ above the others (None: keep all).
@@ -55,9 +56,12 @@ class CalibrateOptions:
         folds: K of the cross-validations (the diagnosis', the nested one).
         seed: seed of their folds.
         nested: judge the whole call by K-fold cross-validation: True, False or None (when cheap).
-        deliver: with an extension, ``balanced`` (the URDF alone stays the best URDF:
-            :mod:`pincal.auto.balance`), ``joint`` (fitted together) or ``none`` (joint, gravity
-            on the nominal URDF: the diagnosis' inner fits).
+        deliver: with effects, ``complete`` (two deliverables: the URDF holds the geometry fitted
+            without the effects, the best URDF alone; the sidecar's full model, geometry and
+            effects fitted together, the best model with the sidecar: :mod:`pincal.auto.delivery`),
+            ``balanced`` (one geometry, weighted so that the URDF alone stays the best URDF:
+            :mod:`pincal.auto.balance`), ``joint`` (one geometry, fitted with the effects) or
+            ``none`` (joint, gravity on the nominal URDF: the diagnosis' inner fits).
         pull: the pull toward the URDF, and when the fit is exported.
     """
 
@@ -69,7 +73,7 @@ class CalibrateOptions:
     loss: str = "linear"
     f_scale: float = 1e-4
     rcond: float = RCOND
-    extension: Extension | str | None = None
+    extension: AnyEffect | str | None = None
     params: Sequence[str] | str | None = None
     outliers: float | None = None
     partial: bool = False
@@ -77,7 +81,7 @@ class CalibrateOptions:
     folds: int = 5
     seed: int = 0
     nested: bool | None = False
-    deliver: str = "balanced"
+    deliver: str = "complete"
     pull: Pull = DEFAULT_PULL
 
     def __post_init__(self) -> None:
@@ -130,11 +134,11 @@ class CalibrateOptions:
             return "auto"
         return tuple(params)
 
-    def effect(self, robot: Robot) -> Extension | str | None:
-        """The effect asked for: None, ``"auto"`` or an :class:`Extension` of ``robot``.
+    def effect(self, robot: Robot) -> AnyEffect | str | None:
+        """The effects asked for: None, ``"auto"``, or one or several effects of ``robot``.
 
         Raises:
-            DataError: text that is not ``auto``, ``none`` or ``EFFECT:JOINT``.
+            DataError: text that is not ``auto``, ``none`` or ``EFFECT:JOINT[+EFFECT:JOINT...]``.
         """
         extension = self.extension
         if extension is None or extension == "none":
@@ -145,4 +149,5 @@ class CalibrateOptions:
             raise DataError(
                 f"extension={extension!r}: write auto, none or EFFECT:JOINT (for example joint_compliance:J)"
             )
-        return Extension.parse(robot, extension, self.payload)
+        parts = [Extension.parse(robot, text.strip(), self.payload) for text in extension.split("+")]
+        return combined(parts)

@@ -22,6 +22,7 @@ from pincal.cli.common import (
     ur_yaml_output,
     urdf_path,
 )
+from pincal.cli.deliver_options import GEOMETRY
 from pincal.cli.flags import as_flags
 from pincal.cli.pull_options import pull
 from pincal.data.dataset import Dataset
@@ -97,7 +98,7 @@ def _fit(
         seed=args.seed,
         nested=NESTED[args.nested],
         progress=progress,
-        deliver="balanced" if args.geometry == "first" else "joint",
+        deliver=GEOMETRY[args.geometry],
         pull=pull(args),
         **fit_options(args),
     )

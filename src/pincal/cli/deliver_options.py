@@ -25,15 +25,21 @@ def add_noise(cmd: argparse.ArgumentParser) -> None:
     )
 
 
+#: ``--geometry`` choices and the library's ``deliver=`` they stand for.
+GEOMETRY = {"first": "complete", "joint": "joint", "balanced": "balanced"}
+
+
 def add_geometry(cmd: argparse.ArgumentParser) -> None:
-    """``--geometry first|joint``: how geometry and an effect share the fit."""
+    """``--geometry first|joint|balanced``: which geometry the URDF and the sidecar hold with effects."""
     cmd.add_argument(
         "--geometry",
-        choices=["first", "joint"],
+        choices=list(GEOMETRY),
         default="first",
-        help="with an effect: 'first' (default) keeps the written URDF the best URDF alone and lets the "
-        "sidecar's effect complete it; 'joint' fits geometry and effect together (best with the sidecar; "
-        "the URDF alone is then worse, and the table says by how much)",
+        help="with effects: 'first' (default) writes two deliverables, a URDF that is the best URDF alone "
+        "(the geometry fitted without the effects) and a sidecar whose full model (its own geometry, "
+        "registration and tool, and the effects, fitted together) is the best model with the sidecar; "
+        "'joint' writes the full model's geometry into the URDF (one geometry: worse alone, the table "
+        "says by how much); 'balanced' one geometry weighted so that the URDF alone stays the best URDF",
     )
 
 

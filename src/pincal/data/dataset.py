@@ -22,6 +22,7 @@ import numpy as np
 import pinocchio as pin
 
 from pincal.data.csv_table import check_locked, content_lines, parse_header, quaternion_columns, read_columns
+from pincal.data.directions import move_directions
 from pincal.errors import DataError
 from pincal.files import STDIN, atomic_write, first_line
 from pincal.options import UNITS
@@ -48,6 +49,9 @@ class Dataset:
             (:meth:`row_name`); else None.
         spread: (N,) for poses averaged over a static segment of a recording, the measurement's
             spread over it (RMS per axis of its standard deviation) [m], else None.
+        directions: (N, n) each joint's direction of motion into each pose, read from the order
+            of the whole source's rows (kept by :meth:`subset`), or None: from the order of ``q``
+            (:meth:`moves`).
     """
 
     joint_names: tuple[str, ...]
@@ -59,6 +63,12 @@ class Dataset:
     point_names: tuple[str, ...] = ()
     point_rows: np.ndarray | None = None
     spread: np.ndarray | None = None
+    directions: np.ndarray | None = None
+
+    def moves(self) -> np.ndarray:
+        """Each joint's direction of motion into each pose (N, n): +1 rising, -1 falling, 0 for
+        the source's first row (:func:`pincal.data.directions.move_directions`)."""
+        return self.directions if self.directions is not None else move_directions(self.q)
 
     @property
     def row_numbers(self) -> np.ndarray:
@@ -105,7 +115,7 @@ class Dataset:
         idx = np.asarray(index)
         per_pose = ("q", "points", "quaternions", "labels", "spread")
         chosen = {name: getattr(self, name)[idx] for name in per_pose if getattr(self, name) is not None}
-        return replace(self, rows=self.row_numbers[idx], **chosen)
+        return replace(self, rows=self.row_numbers[idx], directions=self.moves()[idx], **chosen)
 
     def split(self, fraction: float, seed: int = 0) -> tuple[Dataset, Dataset]:
         """Random (fit, held-out) split, ``fraction`` of the poses held out."""

@@ -4,7 +4,8 @@ URDF, and its sidecar ``FILE.calibration.json`` (tool, registration, joint-angle
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+import tempfile
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
 from typing import Any
@@ -13,11 +14,12 @@ import numpy as np
 import pinocchio as pin
 
 from pincal.errors import DataError
+from pincal.export.effects_json import read_effects
 from pincal.export.ur_yaml import is_yaml
-from pincal.export.urdf_writer import sidecar_path
+from pincal.export.urdf_writer import moved_origins, robot_source, sidecar_path
 from pincal.inputs import read_bytes
 from pincal.kinematics.chain import rigid_transform
-from pincal.kinematics.effects import Extension, Payload
+from pincal.kinematics.effects import AnyEffect
 from pincal.robot.robots import Robot, load_robot
 
 #: Largest sidecar read [bytes] (one is a few kB).
@@ -32,20 +34,32 @@ class CalibratedRobot:
         robot: the chain of the corrected URDF to the calibrated tip.
         tool: ``tip_T_tool``, the measured point (and frame, after pose data) on the tip [m].
         measure: what the calibration measured (``position``, ``pose`` or ``distance``).
-        extension: the identified non-geometric effect, or None.
-        effect: its parameters (units in ``extension.units``).
+        extension: the identified non-geometric effects (one or several), or None.
+        effect: their parameters (units in ``extension.units``).
         instrument_T_base: the identified registration of the instrument, or None.
+        urdf_alone: the written URDF alone (:attr:`alone`).
     """
 
     robot: Robot
     tool: pin.SE3
     measure: str = "position"
-    extension: Extension | None = None
+    extension: AnyEffect | None = None
     effect: np.ndarray = field(default_factory=lambda: np.zeros(0))
     instrument_T_base: pin.SE3 | None = None
+    urdf_alone: CalibratedRobot | None = field(default=None, repr=False)
+
+    @property
+    def alone(self) -> CalibratedRobot:
+        """What a URDF consumer gets: the written URDF with the sidecar's top-level registration
+        and tool, no effect."""
+        if self.urdf_alone is not None:
+            return self.urdf_alone
+        return replace(self, extension=None, effect=np.zeros(0))
 
     def reached(self, q: np.ndarray) -> np.ndarray:
-        """Joint values (N, n) the robot reaches for commands ``q`` (N, n) [rad or m]."""
+        """Joint values (N, n) the robot reaches for commands ``q`` (N, n) [rad or m], the rows in
+        the order the robot moves through them (lost motion reads each joint's direction from the
+        previous row; the first row's is unknown)."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
         return q if self.extension is None else q + self.extension.joint_error(q, self.effect)
 
@@ -61,6 +75,34 @@ class CalibratedRobot:
         placement = tip.placement * self.tool
         frame = pin.Frame("pincal_tool", tip.parentJoint, self.robot.tip_frame_id, placement, pin.OP_FRAME)
         return model, model.addFrame(frame)
+
+
+def _registration(entry: Any) -> pin.SE3 | None:
+    return None if entry is None else rigid_transform(entry["matrix"], "instrument_T_base")
+
+
+def _calibrated(robot: Robot, side: dict[str, Any]) -> CalibratedRobot:
+    """The full model a sidecar describes on the written URDF's chain ``robot``, with the URDF
+    alone as its :attr:`~CalibratedRobot.alone`."""
+    measure = str(side.get("measure", "position"))
+    tool = rigid_transform(side["tip_T_tool"]["matrix"], "tip_T_tool")
+    alone = CalibratedRobot(robot, tool, measure, None, np.zeros(0), _registration(side["instrument_T_base"]))
+    full = side.get("complete")
+    if full is not None:
+        moves = {name: rigid_transform(m["matrix"], name) for name, m in full["joint_origins"].items()}
+        robot = _moved(robot, moves)
+        tool = rigid_transform(full["tip_T_tool"]["matrix"], "tip_T_tool")
+    registration = _registration(full["instrument_T_base"] if full is not None else side["instrument_T_base"])
+    ext, effect = read_effects(robot, side.get("extension"))
+    return CalibratedRobot(robot, tool, measure, ext, effect, registration, alone)
+
+
+def _moved(robot: Robot, moves: dict[str, pin.SE3]) -> Robot:
+    """``robot`` with each joint origin of ``moves`` times its transform, loaded as a URDF."""
+    with tempfile.TemporaryDirectory(prefix="pincal-") as folder:
+        path = Path(folder) / "full-model.urdf"
+        path.write_bytes(moved_origins(robot_source(robot), moves))
+        return load_robot(path, tip=robot.tip, joints=robot.joint_names)
 
 
 def load_calibration(
@@ -111,19 +153,7 @@ def load_calibration(
             robot = load_robot(nominal or "", **chain, **{**robot_options, "kinematics": urdf})
         else:
             robot = load_robot(urdf, **chain)
-        reg, spec = side.get("instrument_T_base"), side.get("extension")
-        ext, effect = None, np.zeros(0)
-        if spec is not None:
-            load = spec.get("payload")
-            com = [float(c) for c in load["com_m"]] if load is not None else []
-            payload = None if load is None else Payload(float(load["mass_kg"]), (com[0], com[1], com[2]))
-            ext = Extension(robot, spec["effect"], spec["joint"], int(spec.get("harmonic", 1)), payload)
-            effect = np.array([float(spec["parameters"][n]["value"]) for n in ext.names])
-            if not np.all(np.isfinite([*effect, *com, payload.mass if payload else 0.0])):
-                raise ValueError("extension: a parameter that is not a finite number")
-        tool = rigid_transform(side["tip_T_tool"]["matrix"], "tip_T_tool")
-        registration = None if reg is None else rigid_transform(reg["matrix"], "instrument_T_base")
-        return CalibratedRobot(robot, tool, str(side.get("measure", "position")), ext, effect, registration)
+        return _calibrated(robot, side)
     except (KeyError, TypeError, ValueError, AttributeError, IndexError) as exc:  # issue 33: any shape
         raise DataError(f"{path} is not a pincal calibration sidecar: bad or missing {exc}") from None
     except DataError as exc:  # issue 33: a payload the sidecar gives is checked as --payload is

@@ -33,6 +33,7 @@ import pinocchio as pin
 from lxml import etree
 
 from pincal.errors import DataError, ImplausibleError, PincalError
+from pincal.export.effects_json import effects_json
 from pincal.files import atomic_write_many
 from pincal.identify.calibration import Calibration
 from pincal.json_text import json_text
@@ -92,7 +93,7 @@ def urdf_chain(cal: Calibration) -> list[pin.SE3]:
     return out
 
 
-def _source(robot: Robot) -> bytes:
+def robot_source(robot: Robot) -> bytes:
     """The URDF the robot was built from (a xacro's output, a kinematics YAML applied, the masses
     lent by ``inertias`` written in)."""
     text = robot.lent_text or robot.urdf_text
@@ -102,7 +103,7 @@ def _source(robot: Robot) -> bytes:
 def _read(robot: Robot) -> Any:
     """The robot's URDF as an XML element."""
     try:
-        return etree.fromstring(_source(robot), _PARSER)
+        return etree.fromstring(robot_source(robot), _PARSER)
     except (OSError, etree.XMLSyntaxError) as exc:
         raise DataError(f"cannot parse URDF {robot.urdf_path}: {exc}") from None
 
@@ -118,13 +119,14 @@ def corrected_origins(cal: Calibration, root: etree._Element | None = None) -> d
 
 
 def corrected_urdf(cal: Calibration, add_frame: str | None = None) -> bytes:
-    """The corrected URDF document.
+    """The corrected URDF document: the geometry of ``cal.written`` (the best URDF alone).
 
     Args:
         cal: the calibration.
         add_frame: if given, a fixed joint ``<add_frame>_joint`` and link ``<add_frame>`` at the
             calibrated tool (point, and orientation for pose data) on the tip link.
     """
+    cal = cal.written
     robot = cal.robot
     root = _read(robot)
     check_frame_name(add_frame)
@@ -136,7 +138,46 @@ def corrected_urdf(cal: Calibration, add_frame: str | None = None) -> bytes:
         _set_origin(ball, _origin(ball.find("origin")) * pin.SE3(np.eye(3), cal.split()[2].translation))
     if add_frame is not None:
         _add_frame(root, robot.tip, add_frame, cal)
-    return _prolog(_source(robot)) + etree.tostring(root, encoding="UTF-8") + b"\n"
+    return _prolog(robot_source(robot)) + etree.tostring(root, encoding="UTF-8") + b"\n"
+
+
+def moved_origins(source: bytes, moves: dict[str, pin.SE3]) -> bytes:
+    """A URDF document with the ``<origin>`` of each joint of ``moves`` times its transform
+    (``origin · M``, as the sidecar's ``complete`` says)."""
+    root = etree.fromstring(source, _PARSER)
+    joints = {j.get("name"): j for j in root.findall("joint")}
+    for name, move in moves.items():
+        if name not in joints:
+            raise DataError(f"complete names the joint {name!r}, which the URDF does not have")
+        _set_origin(joints[name], _origin(joints[name].find("origin")) * move)
+    return _prolog(source) + etree.tostring(root, encoding="UTF-8") + b"\n"
+
+
+def _as_written(origin: pin.SE3) -> pin.SE3:
+    """An origin as the URDF's text holds it (its numbers written and read back)."""
+    element = etree.Element("joint")
+    _set_origin(element, origin)
+    return _origin(element.find("origin"))
+
+
+def complete(cal: Calibration) -> dict[str, Any] | None:
+    """The sidecar's ``complete``: what the full model ``cal`` changes beyond the written URDF
+    (each chain joint's origin, as written, times a matrix; its own registration and tool), or
+    None when the URDF holds the full model's geometry."""
+    if cal.urdf_fit is None:
+        return None
+    written, full = corrected_origins(cal.written), corrected_origins(cal)
+    moves = {name: _as_written(written[name]).actInv(full[name]) for name in cal.robot.joint_names}
+    _, reg, tool = cal.split()
+    if cal.measurement.measure.fixed_points and _ball_joint(_read(cal.robot), cal) is not None:
+        ball = cal.written.split()[2].translation  # the written tip is the URDF alone's ball
+        tool = pin.SE3(np.eye(3), tool.translation - ball)
+    return {
+        "joint_origins": {name: {"matrix": m.homogeneous.tolist()} for name, m in moves.items()},
+        "instrument_T_base": {"matrix": reg.homogeneous.tolist()} if cal.measurement.n_instrument else None,
+        "tip_T_tool": {"matrix": tool.homogeneous.tolist()},
+        "markers": None,
+    }
 
 
 def _ball_joint(root: etree._Element, cal: Calibration) -> etree._Element | None:
@@ -202,7 +243,10 @@ def _add_frame(root: etree._Element, tip: str, name: str, cal: Calibration) -> N
 
 
 def sidecar(cal: Calibration, urdf_name: str) -> dict[str, Any]:
-    """What the URDF cannot hold: the instrument registration and the tool."""
+    """What the URDF cannot hold: the instrument registration and the tool of the URDF alone, and
+    the full model (``complete``: its own geometry, registration and tool; ``extension``: its
+    effects)."""
+    full, cal = cal, cal.written
     _, reg, tool = cal.split()
     ball = cal.measurement.measure.fixed_points and _ball_joint(_read(cal.robot), cal) is not None
     if ball:  # the corrected URDF's tip link is the ball's centre
@@ -228,21 +272,8 @@ def sidecar(cal: Calibration, urdf_name: str) -> dict[str, Any]:
         if fitted
         else "not identified (given, or distance or fixed-point data)",
         "tip_T_tool": pose(tool),
-        "extension": None
-        if cal.extension is None
-        else {
-            "effect": cal.extension.effect,
-            "joint": cal.extension.joint,
-            "harmonic": cal.extension.harmonic,
-            "payload": None
-            if cal.extension.payload is None
-            else {"mass_kg": cal.extension.payload.mass, "com_m": list(cal.extension.payload.com)},
-            "parameters": {
-                n: {"value": float(v), "unit": u}
-                for n, v, u in zip(cal.extension.names, cal.effect_params, cal.extension.units)
-            },
-            "note": "a joint-angle error the URDF cannot hold: command q, the joint reaches q + effect",
-        },
+        "extension": effects_json(full.extension, full.effect_params),
+        "complete": complete(full),
         "tool_note": (
             "the measured point (and target orientation for pose data) on the tip frame. Only what "
             "was measured is calibrated: with point data, frames other than the measured point "

@@ -13,7 +13,7 @@ from pincal.identify.identifiability import Identifiability
 from pincal.identify.measurements import Measurement, Problem, unpack
 from pincal.identify.records import Balance, Choice, Guard, Judgement, PriorChoice
 from pincal.kinematics.chain import Chain, forward
-from pincal.kinematics.effects import Extension
+from pincal.kinematics.effects import AnyEffect
 from pincal.kinematics.models import Model
 from pincal.robot.robots import Robot
 
@@ -50,10 +50,15 @@ class Calibration:
         guard: the fit judged against the nominal model on the fitted poses (:mod:`pincal.identify.guard`).
         plausibility: whether the result can describe a real arm (:func:`pincal.calibrate` judges
             it, :mod:`pincal.plausibility.judge`); the writers refuse an implausible one.
+        urdf_fit: when the full model (this calibration: geometry and effects fitted together)
+            is not what a URDF alone should hold, the fit written to the URDF: the geometry,
+            registration and tool fitted without the effects (the best URDF alone); the sidecar's
+            ``complete`` then carries what the full model changes beyond it. None: the URDF holds
+            this calibration's own geometry.
     """
 
     model: Model
-    extension: Extension | None
+    extension: AnyEffect | None
     measurement: Measurement
     names: tuple[str, ...]
     units: tuple[str, ...]
@@ -78,6 +83,12 @@ class Calibration:
     prior: PriorChoice | None = None
     guard: Guard | None = None
     plausibility: Judgement | None = None
+    urdf_fit: Calibration | None = None
+
+    @property
+    def written(self) -> Calibration:
+        """The fit the corrected URDF holds (:attr:`urdf_fit`, or this calibration)."""
+        return self.urdf_fit if self.urdf_fit is not None else self
 
     @property
     def robot(self) -> Robot:

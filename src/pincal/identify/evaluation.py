@@ -17,7 +17,7 @@ import numpy as np
 from pincal.data.dataset import Dataset
 from pincal.identify.fixed_points import placement, point_errors, point_means
 from pincal.identify.measurements import Measurement, Problem
-from pincal.kinematics.effects import Extension
+from pincal.kinematics.effects import AnyEffect
 from pincal.kinematics.models import Model
 
 
@@ -87,7 +87,7 @@ def pose_errors(
     measurement: Measurement,
     theta: np.ndarray,
     data: Dataset,
-    extension: Extension | None = None,
+    extension: AnyEffect | None = None,
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """Per-pose position error norms [m] and orientation error angles [rad] (pose data); a large
     position or pose set by blocks of :data:`BLOCK_POSES` (its frames are never all held)."""
@@ -121,7 +121,7 @@ def distance_errors(
     measurement: Measurement,
     theta: np.ndarray,
     data: Dataset,
-    extension: Extension | None = None,
+    extension: AnyEffect | None = None,
 ) -> np.ndarray:
     """``|d_model - d_measured|`` [m] over the measurement's pairs (default: all pairs of ``data``)."""
     return np.abs(Problem(model, measurement, data, extension).residuals(theta))
@@ -132,7 +132,7 @@ def evaluate(
     measurement: Measurement,
     theta: np.ndarray,
     data: Dataset,
-    extension: Extension | None = None,
+    extension: AnyEffect | None = None,
 ) -> ErrorStats:
     """Error statistics of the unknowns ``theta`` on ``data``, as the report states them."""
     if measurement.measure.by_pairs:
@@ -196,7 +196,7 @@ def placement_errors(
     measurement: Measurement,
     theta: np.ndarray,
     data: Dataset,
-    extension: Extension | None = None,
+    extension: AnyEffect | None = None,
     left_out: tuple[int, ...] = (),
     misplaced: tuple[int, ...] = (),
 ) -> list[PlacementErrors]:
@@ -264,7 +264,7 @@ def misplaced_rows(
     measurement: Measurement,
     theta: np.ndarray,
     data: Dataset,
-    extension: Extension | None = None,
+    extension: AnyEffect | None = None,
 ) -> list[Misplaced]:
     """The rows of fixed-point data that sit at another point of their placement (points named
     ``<placement>/<name>`` belong to one placement), by the calibrated model; else an empty list."""
@@ -297,7 +297,7 @@ def point_spread(
     measurement: Measurement,
     theta: np.ndarray,
     data: Dataset,
-    extension: Extension | None = None,
+    extension: AnyEffect | None = None,
 ) -> float:
     """The largest distance between two fixed points' mean tip positions [m] (0 for one point):
     how much of the workspace the rows of fixed-point data see."""

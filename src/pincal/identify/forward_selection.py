@@ -34,7 +34,7 @@ from pincal.identify.fixed_points import blind_jacobian
 from pincal.identify.folds import held_out_rows
 from pincal.identify.identifiability import RCOND
 from pincal.identify.solver import SETUP_KEYS, Setup, register, set_up
-from pincal.kinematics.effects import Extension
+from pincal.kinematics.effects import AnyEffect
 from pincal.robot.robots import Robot
 from pincal.threads import limited
 
@@ -250,7 +250,7 @@ def select_parameters(
     min_gain: float = MIN_GAIN,
     keep_all: float = KEEP_ALL,
     max_params: int | None = None,
-    extension: Extension | None = None,
+    extension: AnyEffect | None = None,
     **options: Any,
 ) -> Selection:
     """Forward selection of the model parameters by cross-validation on ``data`` alone.

@@ -36,7 +36,7 @@ from pincal.identify import chunked
 from pincal.identify.fixed_points import PointDistance, check_distances, point_index, point_means
 from pincal.identify.kinds import MeasurementKind, get_kind
 from pincal.kinematics.chain import Chain, Frames, forward, stacked_dot, twist_columns
-from pincal.kinematics.effects import Extension
+from pincal.kinematics.effects import AnyEffect
 from pincal.kinematics.models import Model
 from pincal.options import ROTATION_WEIGHT
 
@@ -130,7 +130,7 @@ class Problem:
     """The residual function of a model, a measurement model and a dataset."""
 
     def __init__(
-        self, model: Model, measurement: Measurement, data: Dataset, extension: Extension | None = None
+        self, model: Model, measurement: Measurement, data: Dataset, extension: AnyEffect | None = None
     ) -> None:
         measurement.measure.check(data)
         self.model = model
@@ -143,7 +143,9 @@ class Problem:
         self.names = (*model.names, *ext_names, *names)
         self.units = (*model.units, *ext_units, *units)
         self.n_model = model.n_params + len(ext_names)
-        self.regressors = extension.regressors(data.q) if extension else np.empty((len(data), 0))
+        none = np.empty((len(data), 0))
+        self.regressors = extension.regressors(data.q, data.moves()) if extension else none
+        self.param_joints = extension.param_joints if extension else np.zeros(0, dtype=int)
         self.pairs = np.empty((0, 2), dtype=int)
         self.measured_distances = np.empty(0)
         if measurement.measure.by_pairs:
@@ -197,9 +199,10 @@ class Problem:
         """The joint values the robot reaches (N, n): the commands plus the extension's error."""
         if self.extension is None:
             return self.data.q
-        q = self.data.q.copy()
-        q[:, self.extension.index] += self.regressors @ theta[self.model.n_params : self.n_model]
-        return q
+        moved = self.regressors * theta[self.model.n_params : self.n_model]
+        onto = np.zeros((len(self.param_joints), self.data.q.shape[1]))
+        onto[np.arange(len(self.param_joints)), self.param_joints] = 1.0  # each parameter's joint
+        return self.data.q + moved @ onto
 
     def target_frames(
         self, theta: np.ndarray, in_instrument: bool = False
@@ -284,16 +287,16 @@ class Problem:
                 if acting.size:
                     add(frames.rotations[k], frames.translations[k], twists[k][:, acting], geo[acting])
         ext = np.flatnonzero((cols >= n_geo) & (cols < self.n_model))
-        if ext.size and self.extension is not None:
-            k, index = 2 * self.extension.index + 1, self.extension.index
+        joints = self.param_joints[cols[ext] - n_geo]
+        for index in np.unique(joints):  # each moved joint's column, times each pose's regressor
+            here = ext[joints == index]
+            k = 2 * int(index) + 1
             axis = self.model.chain(theta[:n_geo]).axes[index]  # in the model's joint frame
-            zeta = axis[:, None] * np.ones(ext.size)
-            # the joint's column, times each pose's regressor: written as a perturbation per column
-            v, w = columns(frames.rotations[k], frames.translations[k], zeta)
-            regressors = self.regressors[:, cols[ext] - n_geo][:, None, :]
-            jac_v[:, :, ext] = v * regressors
+            v, w = columns(frames.rotations[k], frames.translations[k], axis[:, None] * np.ones(here.size))
+            regressors = self.regressors[:, cols[here] - n_geo][:, None, :]
+            jac_v[:, :, here] = v * regressors
             if w is not None:
-                jac_w[:, :, ext] = w * regressors
+                jac_w[:, :, here] = w * regressors
         k = self.n_model
         if m.n_instrument:  # instrument_T_base · exp(ρ): a perturbation before the chain
             here = np.flatnonzero((cols >= k) & (cols < k + 6))

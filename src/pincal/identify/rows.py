@@ -15,7 +15,7 @@ import numpy as np
 
 from pincal.data.dataset import Dataset
 from pincal.kinematics.chain import Frames
-from pincal.kinematics.effects import Extension
+from pincal.kinematics.effects import AnyEffect
 from pincal.kinematics.models import Model
 
 
@@ -36,7 +36,7 @@ class ProblemRows(Protocol):
     data: Dataset
     model: Model
     measurement: Any
-    extension: Extension | None
+    extension: AnyEffect | None
     n_model: int
     pairs: np.ndarray
     measured_distances: np.ndarray

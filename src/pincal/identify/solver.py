@@ -42,7 +42,7 @@ from pincal.identify.measurements import ROTATION_WEIGHT, Measurement, Problem
 from pincal.identify.outliers import find_outliers
 from pincal.identify.registration import initial_measurement
 from pincal.kinematics.chain import Chain, forward
-from pincal.kinematics.effects import Extension
+from pincal.kinematics.effects import AnyEffect
 from pincal.kinematics.mdh import make_model
 from pincal.kinematics.models import Model
 from pincal.robot.robots import Robot
@@ -123,7 +123,7 @@ def set_up(
     rotation_weight: float = ROTATION_WEIGHT,
     pairs: str | np.ndarray = "all",
     point_distances: tuple[PointDistance, ...] = (),
-    extension: Extension | None = None,
+    extension: AnyEffect | None = None,
 ) -> Setup:
     """The problem to solve, with a closed-form first guess of the registration and tool.
 
@@ -163,7 +163,7 @@ def natural_scale(problem: Problem) -> np.ndarray:
     scale = parameter_scale(problem.units, length)
     if extension is not None:  # natural size of an effect: moving the joint by 1 mm at the lever arm
         rms = np.sqrt(np.mean(problem.regressors**2, axis=0))
-        lever = 1.0 if robot.prismatic[extension.index] else length
+        lever = np.where(np.asarray(robot.prismatic)[problem.param_joints], 1.0, length)
         scale[problem.model.n_params : problem.n_model] = 1.0 / (lever * np.where(rms > 0, rms, 1.0))
     return scale
 

@@ -92,7 +92,7 @@ def _plot_cause(
     else:
         x, xlabel = data.q[:, j], f"{ext.joint} angle [rad]"
     order = np.argsort(x)
-    effect = ext.regressors(data.q) @ diagnosis.cause.params
+    effect = ext.regressors(data.q, data.moves()) @ diagnosis.cause.params
     fig = Figure(figsize=(10, 4))
     axes = fig.subplots(1, 2, sharey=True)
     for ax, cal, title in (

@@ -22,7 +22,7 @@ from pincal.identify.evaluation import (
     placement_errors,
 )
 from pincal.json_text import json_text
-from pincal.kinematics.effects import compliance_stiffness
+from pincal.kinematics.effects import Extension, compliance_stiffness, split_params
 from pincal.kinematics.models import PoeModel
 from pincal.report.outcome import Outcome
 
@@ -57,22 +57,36 @@ def parameter_rows(cal: Calibration) -> list[dict[str, Any]]:
     return rows
 
 
-def extension_dict(cal: Calibration, data: Dataset | None = None) -> dict[str, Any] | None:
-    """The extension identified with the geometry: its label, parameters and, for a joint
-    compliance with the fitted poses ``data`` given, the stiffness it implies."""
-    ext = cal.extension
-    if ext is None:
-        return None
+def effect_dict(ext: Extension, params: np.ndarray, data: Dataset | None = None) -> dict[str, Any]:
+    """One effect: its label, parameters and, for a joint compliance with the fitted poses ``data``
+    given, the stiffness it implies."""
     out: dict[str, Any] = {
         "effect": ext.effect,
         "joint": ext.joint,
         "label": ext.label,
-        "parameters": {
-            n: {"value": float(v), "unit": u} for n, v, u in zip(ext.names, cal.effect_params, ext.units)
-        },
+        "parameters": {n: {"value": float(v), "unit": u} for n, v, u in zip(ext.names, params, ext.units)},
     }
     if ext.effect == "joint_compliance" and data is not None:
-        out["stiffness"] = compliance_stiffness(ext, float(cal.effect_params[0]), data.q).to_dict()
+        out["stiffness"] = compliance_stiffness(ext, float(params[0]), data.q).to_dict()
+    return out
+
+
+def extension_dict(cal: Calibration, data: Dataset | None = None) -> dict[str, Any] | list[Any] | None:
+    """The effects identified with the geometry: None, one :func:`effect_dict`, or a list of them."""
+    if cal.extension is None:
+        return None
+    each = [effect_dict(e, p, data) for e, p in split_params(cal.extension, cal.effect_params)]
+    return each[0] if len(each) == 1 else each
+
+
+def _choice_dict(cal: Calibration) -> dict[str, Any] | None:
+    """The choice of the full model, with ``urdf_kept``: the parameters the URDF alone holds
+    (``kept`` when the URDF holds the full model's geometry; None: every identifiable one)."""
+    if cal.choice is None:
+        return None
+    out = cal.choice.to_dict()
+    written = cal.written.choice
+    out["urdf_kept"] = out["kept"] if written is None else written.to_dict()["kept"]
     return out
 
 
@@ -138,7 +152,7 @@ def report_dict(
         "parameters": parameter_rows(cal),
         "placements": [p.to_dict() for p in found[0]],
         "warnings": report_warnings(cal, data, test, found),
-        "choice": None if cal.choice is None else cal.choice.to_dict(),
+        "choice": _choice_dict(cal),
         "prior": None if cal.prior is None else cal.prior.to_dict(),
         "guard": None if cal.guard is None else cal.guard.to_dict(),
         "plausibility": None if cal.plausibility is None else cal.plausibility.to_dict(),

@@ -71,10 +71,18 @@ def choice_lines(cal: Calibration, data: Dataset | None = None) -> list[str]:
             why = choice.skipped or f"the diagnosis' test passed no candidate; best {best}"
             lines.append(f"cause: none ({why})")
         else:
+            steps = choice.steps()
+            first, last = steps[0][1], steps[-1][2]
+            named = f"cause{'s' if len(steps) > 1 else ''}: {' + '.join(s[0] for s in steps)}"
             lines.append(
-                f"cause: {choice.extension.label}, {choice.folds}-fold CV RMS "
-                f"{diag.baseline_cv_rms_mm:.3f} → {diag.extended_cv_rms_mm:.3f} mm (gain {diag.gain:.2f})"
+                f"{named}, {choice.folds}-fold CV RMS {first:.3f} → {last:.3f} mm (gain {first / last:.2f})"
             )
+            if len(steps) > 1:  # each cause's own evidence and share of the gain
+                total = first - last
+                lines += [
+                    f"  {label}: {before:.3f} → {after:.3f} mm ({(before - after) / total:.0%} of the gain)"
+                    for label, before, after in steps
+                ]
             if cal.model.kind == "offsets":  # its geometry is the URDF's: an effect may stand in for it
                 lines.append(f"  {OFFSETS_CAUSE}")
         if diag is not None and diag.untried:
@@ -93,8 +101,9 @@ def choice_lines(cal: Calibration, data: Dataset | None = None) -> list[str]:
             scores = (f" ({r.extended_cv_rms_mm:.3f} mm)" for r in choice.rounds)
             lines.append("  rounds: " + "; ".join(a + b for a, b in zip(each, scores)))
     ext = extension_dict(cal, data)
-    if ext is not None and "stiffness" in ext:
-        lines.append(f"  {ext['joint']}: {ext['stiffness']['verdict']}")
+    for part in [ext] if isinstance(ext, dict) else ext or []:
+        if "stiffness" in part:
+            lines.append(f"  {part['joint']}: {part['stiffness']['verdict']}")
     if choice.nested is not None:
         cv = choice.nested
         lines.append(

@@ -19,7 +19,7 @@ import pinocchio as pin
 from pincal.data.dataset import Dataset
 from pincal.errors import DataError
 from pincal.kinematics.chain import forward, joint_jacobian, skew
-from pincal.kinematics.effects import Extension
+from pincal.kinematics.effects import AnyEffect, Extension, combined
 from pincal.kinematics.models import Model, PlacementsModel
 from pincal.robot.robots import Robot
 
@@ -41,7 +41,7 @@ class TrueRobot:
     x: np.ndarray
     instrument_T_base: pin.SE3
     tool: pin.SE3
-    extension: Extension | None = None
+    extension: AnyEffect | None = None
     effect: np.ndarray | None = None
 
     @property
@@ -149,6 +149,17 @@ def hide_effect(
     moved = replace(truth, extension=extension, effect=direction).target(q)[0]
     size = float(np.sqrt(np.mean(np.sum((moved - base) ** 2, axis=1))))
     return replace(truth, extension=extension, effect=direction * rms / size)
+
+
+def hide_effects(
+    truth: TrueRobot, extensions: list[Extension], q: np.ndarray, rms: float | list[float], seed: int = 0
+) -> TrueRobot:
+    """The same truth with several effects at once, each with a tip displacement over poses ``q``
+    of RMS ``rms`` [m] on its own (one figure for all, or one each; :func:`hide_effect`)."""
+    sizes = [rms] * len(extensions) if np.isscalar(rms) else list(rms)  # type: ignore[list-item]
+    each = [hide_effect(truth, e, q, float(r), seed + k) for k, (e, r) in enumerate(zip(extensions, sizes))]
+    params = np.concatenate([t.effect for t in each if t.effect is not None])
+    return replace(truth, extension=combined(extensions), effect=params)
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
