@@ -65,7 +65,7 @@ def reloaded_rms_mm(urdf: Path, test: Dataset) -> float:
     """RMS position error [mm] of URDF + sidecar loaded back."""
     loaded = pincal.load_calibration(urdf)
     reg = loaded.instrument_T_base or pin.SE3.Identity()
-    points = np.array([(reg * loaded.tool_pose(q)).translation for q in test.q])
+    points = np.array([(reg * pose).translation for pose in loaded.tool_poses(test.q)])
     return float(np.sqrt(np.mean(np.sum((points - test.points) ** 2, axis=1)))) * 1e3
 
 

@@ -51,7 +51,11 @@ def test_a_subset_keeps_the_directions_of_the_whole_file(get_robot) -> None:
 
 
 def _effects(robot: pincal.Robot) -> Effects:
-    labels = ("joint_compliance:shoulder_lift_joint", "gear_harmonic2:elbow_joint", "lost_motion:shoulder_lift_joint")
+    labels = (
+        "joint_compliance:shoulder_lift_joint",
+        "gear_harmonic2:elbow_joint",
+        "lost_motion:shoulder_lift_joint",
+    )
     more = ("lost_motion:wrist_1_joint", "encoder_scale:elbow_joint", "backlash:elbow_joint")
     return Effects(tuple(Extension.parse(robot, t) for t in labels + more))
 
@@ -151,5 +155,42 @@ def test_a_sidecar_with_several_effects_loads_back(get_robot, tmp_path: Path) ->
     assert np.allclose(loaded.effect, cal.effect_params, rtol=0, atol=1e-15)
     reached = loaded.reached(data.q)
     assert np.allclose(reached - data.q, cal.extension.joint_error(data.q, cal.effect_params), atol=1e-6)
-    pose = loaded.tool_pose(data.q[0])
-    assert isinstance(pose, pin.SE3)
+    poses = loaded.tool_poses(data.q)  # the API gives the fit's predictions, lost motion included
+    assert loaded.instrument_T_base is not None
+    predicted = np.array([loaded.instrument_T_base.act(p.translation) for p in poses])
+    assert np.abs(predicted - cal.problem(data).predict(cal.theta)[0]).max() < 1e-9
+    one = loaded.tool_pose(data.q[5], previous=data.q[4])
+    assert isinstance(one, pin.SE3) and np.allclose(one.homogeneous, poses[5].homogeneous, atol=1e-12)
+
+
+def _visited(robot: pincal.Robot, labels: tuple[str, ...], seed: int, n: int = 100) -> pincal.Dataset:
+    """``n`` poses in visiting order with the effects ``labels`` hidden, 0.45 mm RMS each."""
+    rng = np.random.default_rng(seed)
+    truth = pincal.simulation.truth.random_truth(robot, seed=seed)
+    q = robot.random_configurations(n, rng, 0.2)
+    parts = [Extension.parse(robot, t) for t in labels]
+    truth = pincal.simulation.truth.hide_effects(truth, parts, q, 0.45e-3, seed)
+    return truth.measure(q, noise=3e-5, seed=seed + 1)
+
+
+def test_two_hidden_effects_are_both_named_with_their_joints(get_robot) -> None:
+    robot = get_robot("ur5")
+    labels = ("lost_motion:elbow_joint", "encoder_scale:wrist_1_joint")
+    cal = pincal.calibrate(robot, _visited(robot, labels, 11), extension="auto")
+    assert cal.extension is not None and cal.choice is not None
+    assert sorted(e.label for e in cal.extension.parts) == sorted(labels)
+    steps = cal.choice.steps()
+    assert [s[0] for s in steps] == [e.label for e in cal.extension.parts]
+    assert all(after < before for _, before, after in steps)
+
+
+def test_rows_in_no_meaningful_order_show_no_lost_motion(get_robot) -> None:
+    """The robot has lost motion, but the file's rows were shuffled after the measurement: the
+    directions the rows' order gives are not those the robot moved in, and no lost motion pays."""
+    robot = get_robot("ur5")
+    data = _visited(robot, ("lost_motion:shoulder_lift_joint",), 12)
+    shuffled = data.subset(np.random.default_rng(0).permutation(len(data)))
+    shuffled = pincal.Dataset(robot.joint_names, shuffled.q, shuffled.points)  # read as a file is
+    cal = pincal.calibrate(robot, shuffled, extension="auto")
+    named = [] if cal.extension is None else [e.effect for e in cal.extension.parts]
+    assert "lost_motion" not in named

@@ -83,7 +83,7 @@ def by_model(robot: Robot | CalibratedRobot, q: np.ndarray, tool: pin.SE3) -> Co
         tool: ``tip_T_tool`` for the nominal chain (a calibrated robot has its own).
     """
     if isinstance(robot, CalibratedRobot):
-        poses = [robot.tool_pose(row) for row in q]
+        poses = robot.tool_poses(q)  # in the order visited: lost motion reads it
     else:
         poses = [robot.frame_placement(row) * tool for row in q]
     return Commanded(np.array([p.translation for p in poses]), np.array([p.rotation for p in poses]))

@@ -69,6 +69,9 @@ def run(args: argparse.Namespace) -> int:
     for cand in result.candidates[:5]:
         print(f"  {cand.extension.label:42s} CV RMS {cand.cv_rms_mm:.4f} mm  F-test p = {cand.p_value:.2g}")
     print(as_flags(result.summary()))
+    for step in choice.more:  # each further cause, sought with the ones before it held
+        assert step.cause is not None
+        print(as_flags(f"and {step.cause.extension.label}: {step.summary()}"))
     cal = plausible(cal, data, args)  # the model calibrate would export, as calibrate judges it
     found = outcome(cal, data, None, args.noise, args.folds, args.seed)
     print(as_flags(f"residual: {found.residual.sentence()}; {found.residual.how}"))
@@ -82,8 +85,12 @@ def run(args: argparse.Namespace) -> int:
         print(f"plot written to {path}")
     if args.json is not None:
         assert cal.plausibility is not None  # plausible() gives every fit its verdict
+        last = choice.more[-1] if choice.more else result
         out = {
             **result.to_dict(),
+            "extended": {"cv_rms_mm": last.extended_cv_rms_mm},
+            "gain": choice.gain if result.cause is not None else 1.0,
+            "causes": choice.to_dict()["causes"],
             "plausibility": cal.plausibility.to_dict(),
             "residual": found.residual.to_dict(),
         }

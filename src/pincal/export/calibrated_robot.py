@@ -63,9 +63,17 @@ class CalibratedRobot:
         q = np.atleast_2d(np.asarray(q, dtype=float))
         return q if self.extension is None else q + self.extension.joint_error(q, self.effect)
 
-    def tool_pose(self, q: np.ndarray) -> pin.SE3:
-        """``base_T_tool`` for one command ``q`` (n,) [rad or m], the extension included."""
-        return self.robot.frame_placement(self.reached(q)[0]) * self.tool
+    def tool_pose(self, q: np.ndarray, previous: np.ndarray | None = None) -> pin.SE3:
+        """``base_T_tool`` for one command ``q`` (n,) [rad or m], the effects included; a lost
+        motion needs the command the robot came from, ``previous`` (n,) (None: unknown, no
+        lost motion: use :meth:`tool_poses` for a sequence)."""
+        rows = np.atleast_2d(q) if previous is None else np.vstack([previous, q])
+        return self.robot.frame_placement(self.reached(rows)[-1]) * self.tool
+
+    def tool_poses(self, q: np.ndarray) -> list[pin.SE3]:
+        """``base_T_tool`` for each command of ``q`` (N, n), the rows in the order the robot
+        visits them (each joint's lost motion from the row before; the first row's unknown)."""
+        return [self.robot.frame_placement(row) * self.tool for row in self.reached(q)]
 
     @cached_property
     def tool_frame(self) -> tuple[pin.Model, int]:

@@ -30,6 +30,7 @@ def csv_template(robot: Robot, kind: str = "position", units: str = "m", degrees
     lines = [
         f"# pincal measurement CSV: {robot.name}, chain to {robot.tip}; one row per pose, values "
         "comma separated",
+        "# rows in the order the robot visited the poses (a joint's lost motion is read from it)",
         f"# joint columns: the commanded joint values; revolute joints in {angle}"
         + (f"; prismatic joints ({', '.join(prismatic)}) in {length}" if prismatic else ""),
     ]
