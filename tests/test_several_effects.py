@@ -105,7 +105,7 @@ def _hidden(robot: pincal.Robot, labels: tuple[str, ...], seed: int) -> tuple[pi
     return data.subset(np.arange(70)), later
 
 
-@pytest.mark.parametrize("deliver", ["joint", "balanced"])
+@pytest.mark.parametrize("deliver", ["complete", "joint", "balanced"])
 def test_urdf_and_sidecar_of_several_effects_reproduce_the_report(
     get_robot, tmp_path: Path, deliver: str
 ) -> None:
@@ -120,6 +120,7 @@ def test_urdf_and_sidecar_of_several_effects_reproduce_the_report(
     pincal.write_corrected_urdf(cal, urdf)
     side = json.loads(urdf.with_name("cal.calibration.json").read_text())
     assert [e["effect"] for e in side["extension"]] == ["lost_motion", "gear_harmonic"]
+    assert (side["complete"] is not None) == (deliver == "complete")
     for name, rows, after, alone in (
         ("train", data, cal.train_after, outcome.exported.train),
         ("test", test, cal.test_after, outcome.exported.test),

@@ -87,9 +87,11 @@ def gao2013_section(seed: int) -> list[str]:
         ("nominal, tool point fitted", cv.before),
         ("calibrated, geometry only (every parameter)", cv.after),
         ("pincal calibrate's default: the URDF alone", alone.after),
-        (f"  the URDF with its sidecar (+ {cause})", full.after),
+        (f"  the URDF with its sidecar (+ {_short(cause)})", full.after),
     ):
         out.append(f"   {label:54s} {stats.mean_mm:8.3f} {stats.max_mm:8.3f}")
+    if "+" in cause:
+        out.append(f"   (the causes: {cause.replace('+', ', ')})")
     out.append(
         f"   gain {full.gain_vs_urdf:.2f}x on the URDF as is (the paper reports 3.5x on its own test "
         f"pairs; the geometry alone {cv.gain_vs_urdf:.2f}x), {full.gain:.2f}x on the nominal model with "
@@ -100,6 +102,11 @@ def gao2013_section(seed: int) -> list[str]:
         "the full model,\n    geometry and effect fitted together, for pincal compensate and the Python API)"
     )
     return out
+
+
+def _short(cause: str) -> str:
+    """A cause's label, or how many causes."""
+    return f"{cause.count('+') + 1} causes" if "+" in cause else cause
 
 
 def _as_chosen(robot: Robot, data: Dataset, seed: int) -> tuple[str, CrossValidation, CrossValidation]:

@@ -78,11 +78,12 @@ def run(args: argparse.Namespace) -> int:
     if found.caveat():
         print(as_flags(f"note: {found.caveat()}"))
     if args.plots is not None and not result.baseline.measurement.measure.by_pairs:
-        name = result.cause.extension.effect if result.cause else found.residual.verdict
-        plot = args.plots / f"diagnose_{name}.png"
-        check_outputs(args, [plot], {"data file": args.data, "input URDF": urdf_path(args.robot)})
-        path = plot_diagnosis(result, data, plot, found.residual)
-        print(f"plot written to {path}")
+        for k, step in enumerate((result, *choice.more)):  # each cause with its own evidence
+            name = step.cause.extension.effect if step.cause else found.residual.verdict
+            plot = args.plots / f"diagnose_{name}{'_' + str(k + 1) if k else ''}.png"
+            check_outputs(args, [plot], {"data file": args.data, "input URDF": urdf_path(args.robot)})
+            path = plot_diagnosis(step, data, plot, found.residual)
+            print(f"plot written to {path}")
     if args.json is not None:
         assert cal.plausibility is not None  # plausible() gives every fit its verdict
         last = choice.more[-1] if choice.more else result

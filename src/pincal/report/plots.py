@@ -89,6 +89,9 @@ def _plot_cause(
     robot, j = ext.robot, ext.index
     if ext.effect in ("joint_compliance", "backlash"):
         x, xlabel = gravity_torques(robot, data.q, ext.payload)[:, j], f"gravity torque on {ext.joint} [N·m]"
+    elif ext.effect == "lost_motion":  # ±1, spread a little so that the points can be told apart
+        spread = np.random.default_rng(0).uniform(-0.15, 0.15, len(data))
+        x, xlabel = data.moves()[:, j] + spread, f"direction {ext.joint} last moved in (−1, 0 unknown, +1)"
     else:
         x, xlabel = data.q[:, j], f"{ext.joint} angle [rad]"
     order = np.argsort(x)
