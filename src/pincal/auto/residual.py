@@ -58,6 +58,8 @@ class ResidualVerdict:
         floor_mm: what that RMS would be with noise alone [mm] (NaN without a noise figure).
         how: how the noise was known and the verdict reached, in words.
         errors: the held-out error vectors per pose (N, 3) [m] (None for distance data).
+        variable: without a noise figure, the variable the errors were found to depend on (a
+            joint's name, ``pose order`` or ``all joints``; None when none was found).
     """
 
     noise_mm: float
@@ -68,6 +70,7 @@ class ResidualVerdict:
     floor_mm: float
     how: str
     errors: np.ndarray | None = None
+    variable: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """The report's ``residual`` object (no NaN: an unknown figure is None)."""
@@ -94,7 +97,10 @@ class ResidualVerdict:
                 f"{self.unexplained_mm:.3g} mm unexplained above the noise "
                 f"({self.noise_source} {self.noise_mm:.3g} mm per axis)"
             )
-        return "undetermined: the data cannot tell structure from noise (give noise_mm=MM)"
+        return (
+            "undetermined: the data cannot tell structure from noise; give the instrument's noise "
+            "(noise_mm=MM, RMS per axis) or measure a few poses twice to judge what remains"
+        )
 
 
 class HeldOut:
@@ -269,5 +275,5 @@ def _decided(
     why = f"no noise figure, no repeated pose; the errors depend on the {variable} (p = {p_value:.2g})"
     floor = np.sqrt(3) * noise * 1e3
     return ResidualVerdict(
-        noise * 1e3, "estimated", unexplained, "unexplained", rms * 1e3, floor, why, observed
+        noise * 1e3, "estimated", unexplained, "unexplained", rms * 1e3, floor, why, observed, variable
     )

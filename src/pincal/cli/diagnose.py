@@ -82,7 +82,7 @@ def run(args: argparse.Namespace) -> int:
             name = step.cause.extension.effect if step.cause else found.residual.verdict
             plot = args.plots / f"diagnose_{name}{'_' + str(k + 1) if k else ''}.png"
             check_outputs(args, [plot], {"data file": args.data, "input URDF": urdf_path(args.robot)})
-            path = plot_diagnosis(step, data, plot, found.residual)
+            path = plot_diagnosis(step, data, plot, found.residual, as_flags)
             print(f"plot written to {path}")
     if args.json is not None:
         assert cal.plausibility is not None  # plausible() gives every fit its verdict

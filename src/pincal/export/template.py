@@ -44,5 +44,12 @@ def csv_template(robot: Robot, kind: str = "position", units: str = "m", degrees
         )
     if measure.orientation:
         lines.append("# qw,qx,qy,qz: the measured orientation (unit quaternion) in the instrument's frame")
+    if not measure.fixed_points:
+        lines += [
+            "# noise: to judge what the calibration leaves, give calibrate the instrument's noise as "
+            "noise_mm=MM, RMS per axis in mm",
+            "#   (a datasheet's accuracy U at 2 sigma, per axis: U/2; for the 3-D point error, as an MPE: "
+            "U/(2*sqrt(3)); or measure a few poses twice)",
+        ]
     lines.append(",".join((*robot.joint_names, *measure.columns)))
     return "\n".join(lines) + "\n"

@@ -104,8 +104,14 @@ class PriorChoice:
 
     def text(self) -> str:
         """One line for the summary."""
-        how = "maximum evidence over the fitted poses" if self.chosen_by == "evidence" else self.chosen_by
-        return f"pull toward the URDF: weight {self.weight:.3g} per natural unit ({how})"
+        how = self.chosen_by
+        if how == "evidence":
+            how = "chosen by maximum evidence over the fitted poses"
+        return (
+            "pull toward the URDF (what the data hardly see stays near it): a correction of 1 mm "
+            f"(a rotation: 1 mm across the workspace) weighs as a residual of {self.weight:.3g} mm "
+            f"(weight {self.weight:.3g}, {how})"
+        )
 
 
 @dataclass(frozen=True)
@@ -138,7 +144,8 @@ class Guard:
         """The verdict's line."""
         said = (
             f"validation (leave-one-pose-out) RMS {self.fit_cv_rms_mm:.3f} mm calibrated, "
-            f"{self.nominal_cv_rms_mm:.3f} mm nominal (gain {self.z:.1f} standard errors)"
+            f"{self.nominal_cv_rms_mm:.3f} mm nominal; the difference in squared error is {self.z:.1f} times "
+            f"its standard error (reliable above {self.z_min:g})"
         )
         if self.reliable:
             return f"guard: the fit is reliably better than the nominal model: {said}"

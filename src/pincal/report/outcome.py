@@ -58,8 +58,13 @@ class Outcome:
         alone = self.exported.test if held else self.exported.train
         full = self.exported.full_test if held else self.exported.full_train
         where = "held out" if held else "on the fitted poses"
-        name = output or "the corrected URDF"
-        load = f"{name} alone gives {_rms(alone)} mm RMS {where}"
+        if output:
+            load = f"{output} alone gives {_rms(alone)} mm RMS {where}"
+        else:  # nothing written: say what would be, and how to write it
+            load = (
+                "the corrected URDF (not written; pincal calibrate -o FILE.urdf writes it) alone would "
+                f"give {_rms(alone)} mm RMS {where}"
+            )
         if self.cause is not None:
             load += f", with its sidecar ({self.cause}) {_rms(full)} mm"
         parts = [load, f"what remains: {self.residual.sentence()}", *warnings]

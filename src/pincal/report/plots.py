@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import io
 import textwrap
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -32,10 +33,15 @@ def _implied_joint_error(cal: Calibration, data: Dataset, joint: int) -> np.ndar
 
 
 def plot_diagnosis(
-    diagnosis: Diagnosis, data: Dataset, path: str | Path, residual: ResidualVerdict | None = None
+    diagnosis: Diagnosis,
+    data: Dataset,
+    path: str | Path,
+    residual: ResidualVerdict | None = None,
+    words: Callable[[str], str] = str,
 ) -> Path:
     """Write the PNG of a diagnosis: the named cause's evidence, or (without a cause, given the
     ``residual`` verdict) the held-out errors against the joint they depend on most; returns its path.
+    ``words`` rewrites its titles (the command line names arguments as its flags).
 
     Raises:
         DataError: nothing to plot, or the data are distances (no per-pose residual).
@@ -45,26 +51,45 @@ def plot_diagnosis(
     if diagnosis.cause is None:
         if residual is None or residual.errors is None:
             raise DataError("nothing to plot: the diagnosis named no cause")
-        return plot_residual(residual, data, path)
+        best = diagnosis.candidates[0].extension.joint if diagnosis.candidates else None
+        return plot_residual(residual, data, path, best, words)
     return _plot_cause(diagnosis, data, path, residual)
 
 
-def plot_residual(residual: ResidualVerdict, data: Dataset, path: str | Path) -> Path:
-    """The final model's held-out errors against the joint angle they depend on most, with the
-    noise floor: what a model without a named cause still gets wrong."""
+def residual_joint(residual: ResidualVerdict, data: Dataset, candidate: str | None = None) -> tuple[int, str]:
+    """The joint to plot the residual against, and why: the one the residual verdict found the
+    errors depend on, else the best candidate's (the one the diagnosis names), else the first."""
+    names = list(data.joint_names)
+    if residual.variable in names:
+        return names.index(residual.variable), "the joint the errors depend on most"
+    if candidate in names:
+        return names.index(candidate), "the best candidate's joint (not significant)"
+    return 0, "no joint the errors depend on"
+
+
+def plot_residual(
+    residual: ResidualVerdict,
+    data: Dataset,
+    path: str | Path,
+    candidate: str | None = None,
+    words: Callable[[str], str] = str,
+) -> Path:
+    """The final model's held-out errors against the joint angle they depend on most (else the
+    joint of ``candidate``, the diagnosis' best candidate), with the noise floor: what a model
+    without a named cause still gets wrong."""
     from matplotlib.figure import Figure
 
     assert residual.errors is not None
     norms = np.linalg.norm(residual.errors, axis=1) * 1e3
-    j = int(np.nanargmax([abs(np.corrcoef(np.cos(q), norms)[0, 1]) for q in data.q.T]))
+    j, why = residual_joint(residual, data, candidate)
     fig = Figure(figsize=(6, 4))
     ax = fig.subplots()
     ax.plot(data.q[:, j], norms, ".", label="held-out error of the final model")
     if np.isfinite(residual.floor_mm):
         ax.axhspan(0, residual.floor_mm, color="C2", alpha=0.2, label="noise floor (RMS)")
-    ax.set_xlabel(f"{data.joint_names[j]} angle [rad]")
+    ax.set_xlabel(f"{data.joint_names[j]} angle [rad] ({why})")
     ax.set_ylabel("held-out position error [mm]")
-    ax.set_title(textwrap.fill(residual.sentence(), 70), fontsize=9)
+    ax.set_title(textwrap.fill(words(residual.sentence()), 70), fontsize=9)
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
     return _save(fig, path)

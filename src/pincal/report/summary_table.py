@@ -27,6 +27,44 @@ OFFSETS_CAUSE = (
 )
 
 
+#: What each model's parameters are, for the summary's words.
+MODEL_WORDS = {
+    "placements": "joint placement",
+    "poe": "twist (POE)",
+    "mdh": "modified DH",
+    "offsets": "joint offset",
+}
+#: What the unknowns beside the model's are, by the first part of their names.
+GROUP_WORDS = {"instrument": "instrument registration", "tool": "tool", "point": "fixed-point position"}
+
+
+def parameter_groups(cal: Calibration) -> list[tuple[str, int, int]]:
+    """The unknowns of ``cal`` by kind, in order: (words, identifiable, all), e.g.
+    ``("joint placement", 18, 36)``, ``("instrument registration", 6, 6)``, ``("tool", 3, 3)``."""
+    n_model = cal.model.n_params
+    keep = cal.identifiability.identifiable
+    groups: dict[str, list[int]] = {}
+    for i, name in enumerate(cal.names):
+        if i < n_model:
+            words = MODEL_WORDS.get(cal.model.kind, cal.model.kind)
+        else:
+            words = GROUP_WORDS.get(name.split(".")[0], "effect")
+        counts = groups.setdefault(words, [0, 0])
+        counts[0] += int(bool(keep[i]))
+        counts[1] += 1
+    return [(words, n, total) for words, (n, total) in groups.items()]
+
+
+def _others(cal: Calibration) -> str:
+    """The unknowns beside the model's that every fit holds, e.g. ``the 9 of instrument
+    registration and tool``; empty when there are none."""
+    model = MODEL_WORDS.get(cal.model.kind, cal.model.kind)
+    others = [(w, n) for w, n, _ in parameter_groups(cal) if w not in (model, "effect") and n]
+    if not others:
+        return ""
+    return f"the {sum(n for _, n in others)} of {' and '.join(w for w, _ in others)}"
+
+
 def _fmt(stats: ErrorStats | None) -> str:
     if stats is None:
         return "-"
@@ -51,24 +89,29 @@ def choice_lines(cal: Calibration, data: Dataset | None = None) -> list[str]:
     sel = choice.selection
     if sel is not None:
         n_all = len(sel.path) - 1
+        words = MODEL_WORDS.get(sel.model, sel.model)
         how = "by leave-one-out cross-validation on the fitted poses (linearised)"
+        others = _others(cal)
+        always = f" ({others} are always fitted)" if others else ""
         if choice.params is None:
             lines.append(
-                f"parameters: all {n_all} {sel.model} parameters kept {how}: CV RMS "
+                f"parameters: all {n_all} identifiable {words} parameters kept{always}, {how}: CV RMS "
                 f"{sel.all_cv_rms_mm:.3f} mm, within {sel.keep_all:.0%} of the best subset's"
             )
         else:
             lines.append(
-                f"parameters: {len(choice.params)} of {n_all} {sel.model} parameters chosen {how}: "
-                f"CV RMS {sel.cv_rms_mm:.3f} mm (all {n_all}: {sel.all_cv_rms_mm:.3f} mm)"
+                f"parameters: {len(choice.params)} of the {n_all} identifiable {words} parameters chosen"
+                f"{always}, {how}: CV RMS {sel.cv_rms_mm:.3f} mm (all {n_all}: {sel.all_cv_rms_mm:.3f} mm)"
             )
             lines.append(f"  kept: {listed_names(choice.params)}")
             lines.append(f"  left out (stay nominal): {listed_names(choice.left_out)}")
     if choice.extension_mode == "auto":
         diag = choice.diagnosis
         if choice.extension is None or diag is None:
-            best = diag.candidates[0].extension.label if diag is not None and diag.candidates else "none"
-            why = choice.skipped or f"the diagnosis' test passed no candidate; best {best}"
+            why = choice.skipped or (
+                "no effect on any joint lowered the cross-validated error enough to pass the diagnosis' "
+                "test; pincal diagnose lists the candidates"
+            )
             lines.append(f"cause: none ({why})")
         else:
             steps = choice.steps()
@@ -142,8 +185,9 @@ def summary(
     lines = [
         f"robot {cal.robot.name} ({cal.robot.n_joints} joints, tip {cal.robot.tip}), model {cal.model.kind}, "
         f"measure {cal.measurement.kind}, {cal.n_poses} poses",
-        f"parameters: {ident.n_identifiable} identifiable of {len(cal.names)}, "
-        f"condition number {ident.condition_number:.3g}",
+        f"parameters: {ident.n_identifiable} of {len(cal.names)} identifiable from this data ("
+        + ", ".join(f"{words} {n} of {total}" for words, n, total in parameter_groups(cal))
+        + f"), condition number {ident.condition_number:.3g}",
         f"{what} [mm], {stat}:",
         f"  {'':10s} {'URDF as is':>21s} {'before':>21s} {'after':>21s}",
         _row("fitted", cal.train_urdf, cal.train_before, cal.train_after),
@@ -182,7 +226,7 @@ def summary(
             "all the others)"
         )
     lines += choice_lines(cal, data)
-    lines += [part.text() for part in (cal.prior, cal.guard) if part is not None]  # issue 31
+    lines += [part.text() for part in (cal.prior, cal.guard) if part is not None]
     if cal.plausibility is not None and not cal.plausibility.plausible:
         lines.append(f"plausibility: this calibration cannot be right: {cal.plausibility.hint}")
     if outcome is not None:
