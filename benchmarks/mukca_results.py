@@ -21,7 +21,7 @@ import numpy as np
 #: MUKCa's median held-out MAE [mm] per robot (issue 31's table: MUKCa's own code, same pairs).
 MUKCA_MEDIAN_MM = {"panda_1": 0.933, "panda_2": 0.449, "panda_3": 0.221, "dinova_1": 4.121}
 SOURCE = (
-    "MUKCa column: issue 31's table, MUKCa's own code (platonics-delft/kinematics_calibration, "
+    "MUKCa column: MUKCa's own code (platonics-delft/kinematics_calibration, "
     "commit 05a05ab, regulariser 1e-4) run side by side by the planners on the same train/test "
     "pairs; not recomputed here"
 )

@@ -99,3 +99,111 @@ def test_every_key_of_the_tcp_report_is_documented(
     code, _, err = run(capsys, "tcp", poses, "--report", report)
     assert code == 0, err
     assert undocumented(report, "report.md") == []
+
+
+# --- figures and words of the user documentation ------------------------------------------------
+
+ROOT = DOCS.parent
+GENERATED = DOCS / "results" / "generated"
+#: Pages a benchmark writes whole (their figures are sources, as the generated folder's).
+WRITTEN_BY_BENCHMARKS = (DOCS / "results" / "mukca.md",)
+#: The pages whose figures must come from a generated file, and the numbers on each that are not
+#: measured results (settings, thresholds, inputs of a simulation, worked arithmetic), with why.
+QUOTED_PAGES = {
+    "README.md": {"3.10": "Python version", "0.3": "--holdout", "0.01": "--noise example"},
+    "docs/getting-started.md": {
+        "3.10": "Python version",
+        "0.5": "simulated errors",
+        "0.3": "--holdout",
+        "0.01": "--noise example",
+        "106.176": "an error message shown as an example",
+        "6.283": "2 pi, in that message",
+        "0.033": "worked MPE example",
+        "0.0095": "worked MPE example",
+    },
+    "docs/diagnosis.md": {
+        "1.1": "the gain a cause needs",
+        "0.01": "F-test level, deflection bound",
+        "0.1": "orientation check's limit",
+        "0.5": "simulated effect size",
+    },
+    "docs/results/gao.md": {},
+}
+#: A decimal figure (2.5, 0.052, -2.24e-05), not part of a word, a version or a path.
+FIGURE = re.compile(r"(?<![\w.])[-−]?\d+\.\d+(?:[eE][-+]?\d+)?(?![\w.]*[/\\])")
+#: Words of the project's own development, which a user's page has no use for.
+DEVELOPMENT = re.compile(
+    r"\bissues? #?\d+|\bbeing added\b|\bwork in progress\b|\bTODO\b|\bFIXME\b|\bnot yet in every build\b",
+    re.IGNORECASE,
+)
+#: A path in the repository, as pages cite them.
+SOURCE_PATH = re.compile(r"(?<![\w/.])((?:src|tests|benchmarks|notebooks|docs)/[\w./-]*\w)")
+
+
+def _strip_includes(text: str) -> str:
+    """``text`` without its ``{include}`` directives (those show a generated file as it is)."""
+    return re.sub(r"```\{include\}[^\n]*\n```", "", text)
+
+
+def _sources() -> str:
+    """Every generated file's text, dashes and times signs as ASCII."""
+    files = [*sorted(GENERATED.glob("*.md")), *WRITTEN_BY_BENCHMARKS]
+    return "\n".join(f.read_text(encoding="utf-8") for f in files).replace("−", "-")
+
+
+def _figures(text: str) -> list[str]:
+    return [m.group(0).replace("−", "-").lstrip("-") for m in FIGURE.finditer(text)]
+
+
+def _user_pages() -> list[Path]:
+    """The README and every page of the documentation a user reads (notebooks' copies aside)."""
+    pages = [ROOT / "README.md", *sorted(DOCS.rglob("*.md"))]
+    copies = DOCS / "reference" / "notebooks"
+    return [p for p in pages if "_build" not in p.parts and copies not in p.parents]
+
+
+@pytest.mark.parametrize("page", sorted(QUOTED_PAGES))
+def test_every_figure_on_the_quoted_pages_comes_from_a_generated_file(page: str) -> None:
+    """Each decimal figure of the README, getting started, the diagnosis and Gao's page is
+    either included from a file a benchmark writes or found in one (or is a setting the page
+    names, listed in :data:`QUOTED_PAGES`): a figure copied by hand goes stale."""
+    sources = _sources()
+    found = set(_figures(sources))
+    text = _strip_includes((ROOT / page).read_text(encoding="utf-8"))
+    allowed = QUOTED_PAGES[page]
+    stale = sorted({f for f in _figures(text) if f not in found and f not in allowed})
+    assert stale == [], f"{page}: figures no generated file holds: {stale}"
+
+
+def test_readme_demo_block_is_the_generated_output() -> None:
+    """The README's printout of ``pincal demo`` is a verbatim part of the generated demo file."""
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    blocks = re.findall(r"```text\n(.*?)```", readme, re.DOTALL)
+    demo = [b for b in blocks if "Gao et al. 2013" in b]
+    assert demo, "the README shows no demo printout"
+    generated = (GENERATED / "demo.md").read_text(encoding="utf-8")
+    for block in demo:
+        assert block.strip() in generated
+
+
+@pytest.mark.parametrize("page", _user_pages(), ids=lambda p: str(p.relative_to(ROOT)))
+def test_no_development_words_in_the_user_documentation(page: Path) -> None:
+    """No issue numbers, "being added", "TODO", and no source path that does not exist."""
+    text = page.read_text(encoding="utf-8")
+    words = sorted({m.group(0) for m in DEVELOPMENT.finditer(text)})
+    assert words == [], f"{page.name}: {words}"
+    missing = sorted(
+        m.group(1)
+        for m in SOURCE_PATH.finditer(text)
+        if not m.group(1).startswith("docs/_build") and not (ROOT / m.group(1)).exists()  # built, not kept
+    )
+    assert missing == [], f"{page.name}: paths that do not exist: {missing}"
+
+
+def test_the_generated_demo_is_what_the_demo_prints() -> None:
+    """``docs/results/generated/demo.md`` holds today's ``pincal demo`` output, word for word
+    (run ``python benchmarks/readme_figures.py --markdown docs/results/generated`` after a change)."""
+    from pincal.demo import run as run_demo
+
+    generated = (GENERATED / "demo.md").read_text(encoding="utf-8")
+    assert run_demo(seed=0).strip() in generated
