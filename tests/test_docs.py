@@ -206,4 +206,20 @@ def test_the_generated_demo_is_what_the_demo_prints() -> None:
     from pincal.demo import run as run_demo
 
     generated = (GENERATED / "demo.md").read_text(encoding="utf-8")
-    assert run_demo(seed=0).strip() in generated
+    shown = run_demo(seed=0)
+    assert shown.strip() in generated
+    # its words: no symbol of the paper's, the noise floor's sqrt(3) said, the offsets' count explained
+    assert "p_E0" not in shown
+    assert re.search(r"sqrt\(3\) x 0\.03 = 0\.052 mm", shown), shown
+    assert "reflector's position" in shown and "joint zero offsets" in shown
+
+
+@pytest.mark.parametrize("page", ["README.md", "docs/getting-started.md"])
+def test_the_quick_start_gives_noise_and_how_to_get_it(page: str) -> None:
+    """The first calibrate command a user copies has ``--noise``, and the page says how a
+    datasheet figure (±2σ per axis, a 3-D MPE) becomes RMS per axis."""
+    text = (ROOT / page).read_text(encoding="utf-8")
+    commands = re.findall(r"^pincal calibrate .*(?:\\\n.*)*", text, re.MULTILINE)
+    assert commands, page
+    assert "--noise" in commands[0], commands[0]
+    assert "U/2" in text and "U/(2·√3)" in text
