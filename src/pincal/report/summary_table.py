@@ -92,16 +92,16 @@ def choice_lines(cal: Calibration, data: Dataset | None = None) -> list[str]:
         words = MODEL_WORDS.get(sel.model, sel.model)
         how = "by leave-one-out cross-validation on the fitted poses (linearised)"
         others = _others(cal)
-        always = f" ({others} are always fitted)" if others else ""
+        always = f"; {others} are always fitted" if others else ""
         if choice.params is None:
             lines.append(
-                f"parameters: all {n_all} identifiable {words} parameters kept{always}, {how}: CV RMS "
-                f"{sel.all_cv_rms_mm:.3f} mm, within {sel.keep_all:.0%} of the best subset's"
+                f"parameters: all {n_all} identifiable {words} parameters kept {how}: CV RMS "
+                f"{sel.all_cv_rms_mm:.3f} mm, within {sel.keep_all:.0%} of the best subset's{always}"
             )
         else:
             lines.append(
-                f"parameters: {len(choice.params)} of the {n_all} identifiable {words} parameters chosen"
-                f"{always}, {how}: CV RMS {sel.cv_rms_mm:.3f} mm (all {n_all}: {sel.all_cv_rms_mm:.3f} mm)"
+                f"parameters: {len(choice.params)} of the {n_all} identifiable {words} parameters chosen "
+                f"{how}: CV RMS {sel.cv_rms_mm:.3f} mm (all {n_all}: {sel.all_cv_rms_mm:.3f} mm){always}"
             )
             lines.append(f"  kept: {listed_names(choice.params)}")
             lines.append(f"  left out (stay nominal): {listed_names(choice.left_out)}")
