@@ -223,3 +223,13 @@ def test_the_quick_start_gives_noise_and_how_to_get_it(page: str) -> None:
     assert commands, page
     assert "--noise" in commands[0], commands[0]
     assert "U/2" in text and "U/(2·√3)" in text
+
+
+def test_getting_started_template_is_what_the_command_prints(capsys: pytest.CaptureFixture[str]) -> None:
+    """The ``pincal template`` printout shown in getting started is the command's, word for word."""
+    text = (DOCS / "getting-started.md").read_text(encoding="utf-8")
+    shown = re.search(r"```text\n\$ pincal template ur5 --tip tool0\n(.*?)```", text, re.DOTALL)
+    assert shown is not None
+    code, out, err = run(capsys, "template", "ur5", "--tip", "tool0")
+    assert code == 0, err
+    assert shown.group(1) == out
