@@ -19,7 +19,7 @@ from pincal.simulation.truth import hide_effect
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 #: Objects whose keys are names from the data (parameters, joints), not keys to document.
-NAMED_KEYS = ("held", "parameters")
+NAMED_KEYS = ("held", "parameters", "joint_origins")
 
 
 def keys(obj: Any) -> set[str]:
@@ -211,7 +211,7 @@ def test_the_generated_demo_is_what_the_demo_prints() -> None:
     # its words: no symbol of the paper's, the noise floor's sqrt(3) said, the offsets' count explained
     assert "p_E0" not in shown
     assert re.search(r"sqrt\(3\) x 0\.03 = 0\.052 mm", shown), shown
-    assert "reflector's position" in shown and "joint zero offsets" in shown
+    assert "tool point (the reflector)" in shown and "joint zero offsets" in shown
 
 
 @pytest.mark.parametrize("page", ["README.md", "docs/getting-started.md"])
