@@ -233,3 +233,21 @@ def test_getting_started_template_is_what_the_command_prints(capsys: pytest.Capt
     code, out, err = run(capsys, "template", "ur5", "--tip", "tool0")
     assert code == 0, err
     assert shown.group(1) == out
+
+
+def test_no_development_words_in_the_api_reference() -> None:
+    """The docstrings the API reference renders (``docs/reference/api.md``) hold no issue
+    numbers or work-in-progress words either."""
+    import importlib
+    import inspect
+
+    text = (DOCS / "reference" / "api.md").read_text(encoding="utf-8")
+    found = []
+    for name in re.findall(r"\.\. auto(?:function|class):: ([\w.]+)", text):
+        module, _, attr = name.rpartition(".")
+        obj = getattr(importlib.import_module(module), attr)
+        docs = [inspect.getdoc(obj) or ""]
+        if inspect.isclass(obj):
+            docs += [inspect.getdoc(m) or "" for _, m in inspect.getmembers(obj) if callable(m)]
+        found += [f"{name}: {m.group(0)}" for doc in docs for m in DEVELOPMENT.finditer(doc)]
+    assert found == []

@@ -122,3 +122,12 @@ def test_template_shows_noise_and_how_to_get_it(capsys: pytest.CaptureFixture[st
     comments = "\n".join(line for line in out.splitlines() if line.startswith("#"))
     assert "--noise MM" in comments and "RMS per axis" in comments
     assert "U/2" in comments and "U/(2*sqrt(3))" in comments
+
+
+def test_getting_started_names_the_statistics_the_table_prints(calibrate_out: str) -> None:
+    """Getting started describes the printed table by the statistics its header names."""
+    header = re.search(r"^position error \[mm\], (.*):$", calibrate_out, re.MULTILINE)
+    assert header is not None, calibrate_out
+    page = (Path(__file__).resolve().parents[1] / "docs" / "getting-started.md").read_text(encoding="utf-8")
+    assert f"`{header.group(1)}`" in page
+    assert "RMS, mean and max" not in page
