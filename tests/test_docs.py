@@ -37,10 +37,11 @@ def keys(obj: Any) -> set[str]:
 
 
 def undocumented(path: Path, *pages: str) -> list[str]:
-    """The keys of the JSON file ``path`` that no page of ``pages`` names (as `key` or "key")."""
+    """The keys of the JSON file ``path`` that no page of ``pages`` names (as `key`, "key" or
+    `parent.key`)."""
     text = "".join((DOCS / page).read_text(encoding="utf-8") for page in pages)
     written = keys(json.loads(path.read_text(encoding="utf-8")))
-    return sorted(k for k in written if not re.search(rf"[`\"]{re.escape(k)}[`\"]", text))
+    return sorted(k for k in written if not re.search(rf"[`\"](?:[\w.]+\.)?{re.escape(k)}[`\"]", text))
 
 
 @pytest.fixture(scope="module")
