@@ -465,7 +465,7 @@ def test_demo(capsys: pytest.CaptureFixture[str]) -> None:
     assert float(gain.group(1)) > float(gain.group(2)) >= 3.0
     means = {
         label.strip(): float(mean)
-        for label, mean in re.findall(r"^ {3}(\S.{53}) +([0-9.]+) +[0-9.]+$", run.out, re.MULTILINE)
+        for label, mean in re.findall(r"^ {3}(.{54}) +([0-9.]+) +[0-9.]+$", run.out, re.MULTILINE)
     }
     geometry = means["calibrated, geometry only (every parameter)"]
     alone = means["pincal calibrate's default: the URDF alone"]
