@@ -31,7 +31,7 @@ from pincal.identify.calibration import Calibration
 from pincal.identify.forward_selection import Selection, select_on
 from pincal.identify.kfold import CrossValidation, Fit
 from pincal.identify.solver import Setup, set_up
-from pincal.kinematics.effects import AnyEffect, combined
+from pincal.kinematics.effects import AnyEffect, Effects
 
 #: Rounds of selection and diagnosis for ``extension="auto"``.
 MAX_ROUNDS = 3
@@ -316,6 +316,6 @@ def _more_causes(
             break
         if diag.cause is None:
             break
-        effects = combined([*effects.parts, diag.cause.extension])
+        effects = Effects((*effects.parts, diag.cause.extension))
         steps.append(diag)
     return replace(choice, extension=effects, more=tuple(steps))

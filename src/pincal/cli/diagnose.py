@@ -60,9 +60,9 @@ def run(args: argparse.Namespace) -> int:
         rows = [row for row, _ in cal.excluded]
         data = data.subset(np.flatnonzero(~np.isin(data.row_numbers, rows)))
     choice = choice_of(cal)
-    result = choice.diagnosis if choice is not None else None
-    if result is None:
+    if choice is None or choice.diagnosis is None:
         raise IdentifiabilityError(f"the diagnosis did not run: {choice.skipped if choice else 'no choice'}")
+    result = choice.diagnosis
     print(
         f"baseline {args.model}: cross-validated RMS {result.baseline_cv_rms_mm:.4f} mm ({args.folds} folds)"
     )

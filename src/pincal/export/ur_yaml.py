@@ -79,7 +79,7 @@ def calibrated_ur_kinematics(cal: Calibration, calibration_hash: str | None = No
     from pincal.export.urdf_writer import corrected_origins
 
     chain = robot_ur_chain(cal.robot)
-    origins = corrected_origins(cal)
+    origins = corrected_origins(cal.written)  # the URDF alone's geometry, as the URDF writes it
     if calibration_hash is None:  # ur_description writes it into its ros2_control tag
         found = _HASH_PARAM.search(cal.robot.urdf_text)
         calibration_hash = found.group(1).strip() if found else None

@@ -156,8 +156,8 @@ def hide_effects(
 ) -> TrueRobot:
     """The same truth with several effects at once, each with a tip displacement over poses ``q``
     of RMS ``rms`` [m] on its own (one figure for all, or one each; :func:`hide_effect`)."""
-    sizes = [rms] * len(extensions) if np.isscalar(rms) else list(rms)  # type: ignore[list-item]
-    each = [hide_effect(truth, e, q, float(r), seed + k) for k, (e, r) in enumerate(zip(extensions, sizes))]
+    sizes = [float(rms)] * len(extensions) if isinstance(rms, (int, float)) else [float(r) for r in rms]
+    each = [hide_effect(truth, e, q, r, seed + k) for k, (e, r) in enumerate(zip(extensions, sizes))]
     params = np.concatenate([t.effect for t in each if t.effect is not None])
     return replace(truth, extension=combined(extensions), effect=params)
 
