@@ -6,6 +6,8 @@
 - the linearised screen of :mod:`pincal.auto.screening` ranks a hidden effect first and its
   cross-validated RMS is close to the nonlinear cross-validation's;
 - one BLAS thread by default, ``PINCAL_THREADS`` and ``--threads`` to change it;
+- the folds of a cross-validation run in two processes, and the answer is bit-for-bit the
+  serial one;
 - ``import pincal`` and ``pincal --help`` load neither NumPy nor Pinocchio.
 """
 
@@ -26,7 +28,7 @@ from pincal.identify.solver import set_up
 from pincal.kinematics.chain import jlog3, log3
 from pincal.kinematics.effects import Extension
 from pincal.simulation.truth import hide_effect
-from pincal.threads import blas_threads, thread_count
+from pincal.threads import blas_threads, parallel_map, thread_count, worker_count
 
 
 def _rotations(seed: int) -> np.ndarray:
@@ -148,3 +150,48 @@ def test_levenberg_marquardt_finds_least_squares_minimum(seed: int) -> None:
     assert np.allclose(ours.x, reference.x, rtol=1e-7, atol=1e-9)
     assert ours.cost == pytest.approx(reference.cost, rel=1e-10)
     assert np.abs(jac(ours.x).T @ fun(ours.x)).max() < 1e-9  # the normal equations hold
+
+
+def test_parallel_map_uses_two_processes_in_order() -> None:
+    import os
+
+    answers = parallel_map(lambda k: (k * k, os.getpid()), 6, workers=2)
+    assert [a for a, _ in answers] == [k * k for k in range(6)]
+    assert len({pid for _, pid in answers}) == 2 and os.getpid() not in {pid for _, pid in answers}
+
+
+def test_parallel_map_raises_the_first_error_as_the_loop_would() -> None:
+    def task(k: int) -> int:
+        if k >= 2:
+            raise pincal.IdentifiabilityError(f"fold {k}", 10 + k)
+        return k
+
+    with pytest.raises(pincal.IdentifiabilityError, match="fold 2") as caught:
+        parallel_map(task, 5, workers=2)
+    assert caught.value.poses_needed == 12
+
+
+def test_workers_from_the_environment(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("PINCAL_WORKERS", "3")
+    assert worker_count() == 3
+    for bad in ("0", "two"):
+        monkeypatch.setenv("PINCAL_WORKERS", bad)
+        with pytest.raises(pincal.PincalError, match="PINCAL_WORKERS"):
+            worker_count()
+
+
+def test_nested_cross_validation_in_two_processes_is_the_serial_one(
+    get_robot, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    robot = get_robot("ur5")
+    _, fit, _ = pincal.simulate(robot, n_fit=40, n_test=0, seed=3)
+    runs = {}
+    for workers in ("1", "2"):
+        monkeypatch.setenv("PINCAL_WORKERS", workers)
+        runs[workers] = pincal.calibrate(robot, fit, params="auto", extension="auto", nested=True)
+    serial, parallel = runs["1"].choice.nested, runs["2"].choice.nested
+    assert serial is not None and parallel is not None
+    assert serial.after == parallel.after and serial.before == parallel.before
+    for one, two in zip(serial.calibrations, parallel.calibrations):
+        assert np.array_equal(one.theta, two.theta)
+    assert np.array_equal(runs["1"].theta, runs["2"].theta)
