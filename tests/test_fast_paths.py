@@ -193,8 +193,15 @@ def test_parallel_map_raises_the_first_error_as_the_loop_would() -> None:
 
 
 def test_workers_from_the_environment(monkeypatch: pytest.MonkeyPatch) -> None:
+    import threading
+
     monkeypatch.setenv("PINCAL_WORKERS", "3")
     assert worker_count() == 3
+    off_main: list[int] = []
+    thread = threading.Thread(target=lambda: off_main.append(worker_count()))
+    thread.start()
+    thread.join()
+    assert off_main == [1]  # forking off the main thread is not safe: serial
     for bad in ("0", "two"):
         monkeypatch.setenv("PINCAL_WORKERS", bad)
         with pytest.raises(pincal.PincalError, match="PINCAL_WORKERS"):

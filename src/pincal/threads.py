@@ -27,6 +27,7 @@ import functools
 import multiprocessing
 import os
 import signal
+import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any, TypeVar
@@ -96,12 +97,15 @@ def limited(func: F) -> F:
 
 def worker_count(value: int | str | None = None) -> int:
     """Worker processes for independent work: ``value``, else ``$PINCAL_WORKERS``, else the
-    cores this process may use (1 inside a worker, or where processes cannot be forked).
+    cores this process may use; 1 where forking is not safe or not allowed: inside a worker, in
+    a daemonic process (a ``multiprocessing`` pool's worker may have no children), off the main
+    thread (another thread may hold a lock the child would inherit locked), or where processes
+    cannot be forked.
 
     Raises:
         PincalError: not a whole number of 1 or more.
     """
-    if _in_worker or "fork" not in multiprocessing.get_all_start_methods():
+    if _in_worker or not _may_fork():
         return 1
     text = os.environ.get(WORKERS_ENV, "") if value is None else str(value)
     if text.strip() == "":
@@ -113,6 +117,15 @@ def worker_count(value: int | str | None = None) -> int:
     if count < 1:
         raise PincalError(f"{WORKERS_ENV}={text!r}: give a number of worker processes, 1 or more")
     return count
+
+
+def _may_fork() -> bool:
+    """Whether this process may fork workers (see :func:`worker_count`)."""
+    return (
+        "fork" in multiprocessing.get_all_start_methods()
+        and not multiprocessing.current_process().daemon
+        and threading.current_thread() is threading.main_thread()
+    )
 
 
 def parallel_map(
