@@ -198,7 +198,10 @@ def main(argv: list[str] | None = None) -> None:
     text = "\n".join("  ".join(str(c) for c in row) for row in [header, *body])
     print(text + "\n" + note)
     if args.markdown is not None:
-        command = command_line("speed_bars.py", sys.argv[1:] if argv is None else argv, {})
+        names = {str(args.tiago).rstrip("/"): "TIAGO_DIR"}
+        if args.baseline is not None:
+            names[str(args.baseline).rstrip("/")] = "BASELINE_SRC"
+        command = command_line("speed_bars.py", sys.argv[1:] if argv is None else argv, names)
         write_page(args.markdown, command, [table([str(h) for h in header], body), "", note])
 
 
