@@ -11,12 +11,23 @@ otherwise:
 - the environment variable ``PINCAL_THREADS``: a number of threads, or ``0`` to leave BLAS as
   it is (its own default or the caller's ``threadpoolctl`` limits);
 - ``pincal --threads N`` on the command line; :func:`blas_threads` in code.
+
+Independent pieces of work (the folds of a cross-validation) run in worker processes, one per
+core (:func:`parallel_map`): Python's own work in pincal's loops is most of their time, so
+threads would share one interpreter lock (``benchmarks/speed.py`` measures processes against
+the serial loop). Each worker runs with one
+BLAS thread and does exactly what the serial loop does, so the answers are bit-for-bit the same
+(``tests/test_fast_paths.py``). ``PINCAL_WORKERS``: the number of worker processes (default:
+the cores this process may use; 1: serial). A worker never starts workers of its own.
 """
 
 from __future__ import annotations
 
 import functools
+import multiprocessing
 import os
+import signal
+import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any, TypeVar
@@ -28,8 +39,14 @@ ENV = "PINCAL_THREADS"
 #: Threads when neither the call nor the environment says.
 DEFAULT = 1
 
+#: Environment variable with the number of worker processes (1: serial).
+WORKERS_ENV = "PINCAL_WORKERS"
+
 F = TypeVar("F", bound=Callable[..., Any])
+T = TypeVar("T")
 _controller: list[Any] = []  # threadpoolctl's controller, made at the first limited call
+_task: list[Callable[[int], Any]] = []  # the work of the pool being forked (inherited, not pickled)
+_in_worker: list[bool] = []  # set in a worker process: its own work runs serially
 
 
 def thread_count(value: int | str | None = None) -> int:
@@ -76,3 +93,99 @@ def limited(func: F) -> F:
             return func(*args, **kwargs)
 
     return wrapper  # type: ignore[return-value]
+
+
+def worker_count(value: int | str | None = None) -> int:
+    """Worker processes for independent work: ``value``, else ``$PINCAL_WORKERS``, else the
+    cores this process may use; 1 where forking is not safe or not allowed: inside a worker, in
+    a daemonic process (a ``multiprocessing`` pool's worker may have no children), off the main
+    thread (another thread may hold a lock the child would inherit locked), or where processes
+    cannot be forked.
+
+    Raises:
+        PincalError: not a whole number of 1 or more.
+    """
+    if _in_worker or not _may_fork():
+        return 1
+    text = os.environ.get(WORKERS_ENV, "") if value is None else str(value)
+    if text.strip() == "":
+        return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    try:
+        count = int(text)
+    except ValueError:
+        count = 0
+    if count < 1:
+        raise PincalError(f"{WORKERS_ENV}={text!r}: give a number of worker processes, 1 or more")
+    return count
+
+
+def _may_fork() -> bool:
+    """Whether this process may fork workers (see :func:`worker_count`)."""
+    return (
+        "fork" in multiprocessing.get_all_start_methods()
+        and not multiprocessing.current_process().daemon
+        and threading.current_thread() is threading.main_thread()
+    )
+
+
+def parallel_map(
+    task: Callable[[int], T],
+    count: int,
+    workers: int | None = None,
+    done: Callable[[int], None] | None = None,
+) -> list[T]:
+    """``[task(0), ..., task(count - 1)]``, computed by forked worker processes.
+
+    The task is inherited by the workers (any callable, a closure too); only the indices go to
+    them and only the answers (pickled, so bit-for-bit) come back. An exception a task raises
+    is raised here, the one of the lowest index, as the serial loop would raise it.
+
+    Args:
+        task: the work of one index.
+        count: the number of indices.
+        workers: worker processes (default :func:`worker_count`); 1 runs the loop here.
+        done: called with each index, in order, once its answer is here.
+    """
+    n_workers = min(worker_count(workers), count)
+    if n_workers <= 1:
+        return _serial(task, count, done)
+    _task.append(task)
+    try:
+        context = multiprocessing.get_context("fork")
+        with context.Pool(n_workers, initializer=_start_worker) as pool:
+            answers = []
+            for k, (ok, answer) in enumerate(pool.imap(_run, range(count), chunksize=1)):
+                if not ok:
+                    raise answer
+                answers.append(answer)
+                if done is not None:
+                    done(k)
+            return answers
+    finally:
+        _task.pop()
+
+
+def _serial(task: Callable[[int], T], count: int, done: Callable[[int], None] | None) -> list[T]:
+    """The loop of :func:`parallel_map`, in this process."""
+    answers = []
+    for k in range(count):
+        answers.append(task(k))
+        if done is not None:
+            done(k)
+    return answers
+
+
+def _start_worker() -> None:
+    """A worker: Ctrl-C is the parent's to handle, SIGTERM ends it, its BLAS runs one thread."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    _in_worker.append(True)
+
+
+def _run(index: int) -> tuple[bool, Any]:
+    """One index's answer, or the exception it raised (``(False, exc)``)."""
+    try:
+        with blas_threads(1):
+            return True, _task[-1](index)
+    except Exception as exc:  # noqa: BLE001 (raised again in the parent, at its index)
+        return False, exc

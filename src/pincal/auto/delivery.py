@@ -24,7 +24,6 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
-from scipy.optimize import OptimizeResult
 
 from pincal.data.dataset import Dataset
 from pincal.export.calibrated_robot import CalibratedRobot, load_calibration
@@ -32,6 +31,7 @@ from pincal.export.urdf_writer import corrected_files, corrected_urdf
 from pincal.identify.calibration import Calibration
 from pincal.identify.evaluation import ErrorStats, evaluate
 from pincal.identify.identifiability import Identifiability
+from pincal.identify.lm import OptimizeResult
 from pincal.identify.measurements import Measurement, Problem
 from pincal.identify.solver import Setup, assess, natural_scale, register, solve
 from pincal.kinematics.effects import AnyEffect

@@ -24,7 +24,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.special import fdtrc
 
 from pincal.auto.screening import Linearised, Screen
 from pincal.data.dataset import Dataset
@@ -267,6 +266,8 @@ def _f_value(rss0: float, rss1: float, extra: int, dof: int) -> float:
     """p-value of the F-test of ``extra`` more parameters, ``dof`` residual degrees of freedom."""
     if extra <= 0 or dof <= 0 or rss1 <= 0:
         return 1.0
+    from scipy.special import fdtrc  # here: SciPy's special functions are start-up a run may not pay
+
     return float(fdtrc(extra, dof, ((rss0 - rss1) / extra) / (rss1 / dof)))
 
 

@@ -9,7 +9,6 @@ is listed under "options", as argparse lists it.
 from __future__ import annotations
 
 import argparse
-from importlib import metadata
 from pathlib import Path
 
 #: Where a user reads what the commands, files and report keys mean.
@@ -73,6 +72,8 @@ GROUPS: dict[str, list[str]] = {
 
 def version() -> str:
     """The installed distribution's version (the package's own when run from a source tree)."""
+    from importlib import metadata  # here: 40 ms of imports that only --version needs
+
     try:
         return metadata.version("pincal")
     except metadata.PackageNotFoundError:  # pragma: no cover - run without installing

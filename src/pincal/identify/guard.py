@@ -20,12 +20,12 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.optimize import OptimizeResult
 
 from pincal.data.dataset import Dataset
 from pincal.identify.calibration import Calibration
 from pincal.identify.folds import held_out_rows
 from pincal.identify.identifiability import Identifiability
+from pincal.identify.lm import OptimizeResult
 from pincal.identify.measurements import Problem
 from pincal.identify.prior import choose_weight, pulled
 from pincal.identify.records import Guard, PriorChoice

@@ -27,7 +27,7 @@ from pincal.identify.folds import fold_indices
 from pincal.identify.measurements import Problem
 from pincal.kinematics.models import Model
 from pincal.robot.robots import Robot
-from pincal.threads import limited
+from pincal.threads import limited, parallel_map
 
 #: A fit: :func:`pincal.calibrate`'s signature, ``fit(robot, data, model, measure, **options)``.
 Fit = Callable[..., Calibration]
@@ -109,26 +109,36 @@ def cross_validate_with(
     """
     if not 2 <= folds <= len(data):
         raise DataError(f"cross-validation needs between 2 and {len(data)} folds (one per pose), got {folds}")
-    pooled: list[list[np.ndarray]] = [[], [], []]
-    cals = []
-    for k, held in enumerate(fold_indices(len(data), folds, seed)):
-        kept = np.setdiff1d(np.arange(len(data)), held)
-        try:
-            cal = fit(robot, data.subset(kept), model, measure, **{**options, "partial": True})
-        except IdentifiabilityError as exc:  # said of the fold, it would ask for fewer poses than given
-            if exc.poses_needed is None:
-                raise
-            fits = (n - -(-n // folds) for n in range(len(data), 10 * exc.poses_needed + folds + 1))
-            least = len(data) + next(k for k, n in enumerate(fits) if n >= exc.poses_needed)
-            raise IdentifiabilityError(
-                f"{folds}-fold cross-validation fits {len(kept)} of the {len(data)} poses at a time, which "
-                f"give too few equations: measure at least {least} poses, or use fewer folds (folds=)",
-                least,
-            ) from None
-        cals.append(cal)
-        for store, errs in zip(pooled, held_out_errors(cal, data, held)):
-            store.append(errs)
+    parts = fold_indices(len(data), folds, seed)
+
+    def one_fold(k: int) -> tuple[Calibration, list[np.ndarray]]:
+        kept = np.setdiff1d(np.arange(len(data)), parts[k])
+        cal = _fold_fit(fit, (robot, data, kept, model, measure), folds, options)
+        return cal, held_out_errors(cal, data, parts[k])
+
+    def done(k: int) -> None:
         if progress is not None:
             progress(k + 1, folds, f"cross-validation, fold {k + 1} of {folds}")
+
+    answers = parallel_map(one_fold, len(parts), done=done)  # the folds are independent
+    pooled = [[errs[j] for _, errs in answers] for j in range(3)]
     urdf, before, after = (ErrorStats.of(np.concatenate(p)) for p in pooled)
-    return CrossValidation(folds, urdf, before, after, tuple(cals))
+    return CrossValidation(folds, urdf, before, after, tuple(cal for cal, _ in answers))
+
+
+def _fold_fit(fit: Fit, what: tuple[Any, ...], folds: int, options: dict[str, Any]) -> Calibration:
+    """``fit`` on the poses ``kept`` of ``data`` (``what``: robot, data, kept, model, measure),
+    or the error that says how many poses the cross-validation needs."""
+    robot, data, kept, model, measure = what
+    try:
+        return fit(robot, data.subset(kept), model, measure, **{**options, "partial": True})
+    except IdentifiabilityError as exc:  # said of the fold, it would ask for fewer poses than given
+        if exc.poses_needed is None:
+            raise
+        fits = (n - -(-n // folds) for n in range(len(data), 10 * exc.poses_needed + folds + 1))
+        least = len(data) + next(k for k, n in enumerate(fits) if n >= exc.poses_needed)
+        raise IdentifiabilityError(
+            f"{folds}-fold cross-validation fits {len(kept)} of the {len(data)} poses at a time, which "
+            f"give too few equations: measure at least {least} poses, or use fewer folds (folds=)",
+            least,
+        ) from None

@@ -12,9 +12,28 @@ Robust losses keep ``least_squares`` (trust-region reflective).
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
-from scipy.optimize import OptimizeResult
+
+
+class OptimizeResult(dict[str, Any]):
+    """A fit's answer, as ``scipy.optimize.OptimizeResult``: a dict whose keys are attributes
+    too (``x``, ``cost``, ``fun``, ``nfev``, ``njev``, ``status``, ``success``, ``message``).
+
+    Defined here so that a calibration does not import ``scipy.optimize`` (0.3 s of start-up,
+    FFTs and linear programming included) unless a robust loss needs ``least_squares``.
+    """
+
+    def __getattr__(self, name: str) -> Any:
+        try:
+            return self[name]
+        except KeyError as exc:
+            raise AttributeError(name) from exc
+
+    __setattr__ = dict.__setitem__
+    __delattr__ = dict.__delitem__
+
 
 #: First damping, relative to the largest diagonal entry of ``JᵀJ``, when the Gauss-Newton step fails.
 FIRST_DAMPING = 1e-4

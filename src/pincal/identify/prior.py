@@ -27,10 +27,10 @@ from collections.abc import Sequence
 from dataclasses import replace
 
 import numpy as np
-from scipy.optimize import OptimizeResult
 
 from pincal.errors import DataError
 from pincal.identify.chunked import normal_terms
+from pincal.identify.lm import OptimizeResult
 from pincal.identify.records import PriorChoice
 from pincal.identify.solver import Setup, solve
 

@@ -25,7 +25,6 @@ from typing import Any
 
 import numpy as np
 import pinocchio as pin
-from scipy.optimize import OptimizeResult, least_squares
 
 from pincal.data.checks import spread
 from pincal.data.dataset import Dataset
@@ -37,7 +36,7 @@ from pincal.identify.evaluation import evaluate
 from pincal.identify.fixed_points import PointDistance, blind_jacobian, gauge_reasons, placed_distances
 from pincal.identify.identifiability import RCOND, Identifiability, analyse, check_rank, parameter_scale
 from pincal.identify.kinds import check_options, get_kind
-from pincal.identify.lm import levenberg_marquardt
+from pincal.identify.lm import OptimizeResult, levenberg_marquardt
 from pincal.identify.measurements import ROTATION_WEIGHT, Measurement, Problem
 from pincal.identify.outliers import find_outliers
 from pincal.identify.registration import initial_measurement
@@ -202,7 +201,9 @@ def solve(
     if loss == "linear" and len(problem.residuals(theta)) >= free.sum():
         big = chunked.lm_triangle(problem, full, free, x_scale, (prior, nominal[geometric]))  # issue 33
         result = levenberg_marquardt(residuals, jacobian, theta[free], x_scale, max_nfev=200, triangle=big)
-    else:
+    else:  # a robust loss: SciPy's trust-region reflective, imported only then (start-up)
+        from scipy.optimize import least_squares
+
         tight = dict.fromkeys(("xtol", "ftol", "gtol"), 1e-12)
         options = dict(loss=loss, f_scale=f_scale, x_scale=x_scale, max_nfev=200, **tight)
         result = least_squares(residuals, theta[free], jac=jacobian, method="trf", **options)

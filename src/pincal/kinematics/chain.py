@@ -70,6 +70,9 @@ class Frames:
 
 def skew(v: np.ndarray) -> np.ndarray:
     """Skew-symmetric matrices of vectors (..., 3) -> (..., 3, 3)."""
+    if v.ndim == 1:  # one vector: a literal, several times faster than the indexed writes
+        x, y, z = v.tolist()
+        return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
     out = np.zeros((*v.shape[:-1], 3, 3))
     out[..., 0, 1], out[..., 0, 2] = -v[..., 2], v[..., 1]
     out[..., 1, 0], out[..., 1, 2] = v[..., 2], -v[..., 0]
@@ -99,7 +102,7 @@ def forward(chain: Chain, q: np.ndarray) -> Frames:
     rot, pos = rotations[0], translations[0]
     for j in range(n):
         v, w = chain.axes[j, :3], chain.axes[j, 3:]
-        if np.any(w):  # revolute joint through the frame origin: R · (I + s K + (1 - c) K²)
+        if w.any():  # revolute joint through the frame origin: R · (I + s K + (1 - c) K²)
             k = skew(w)
             rot_k = stacked_dot(rot, k)
             s, c = np.sin(q[:, j])[:, None, None], np.cos(q[:, j])[:, None, None]
@@ -129,7 +132,9 @@ def twist_columns(
         The point's velocity ``R ζ_v + (R ζ_ω) × (point - p)`` (N, 3, m) [m/unit] and the
         angular velocity ``R ζ_ω`` (N, 3, m) [rad/unit] (None unless ``rotation``).
     """
-    rot = np.ascontiguousarray(np.broadcast_to(rot, (len(point), 3, 3)))
+    if rot.shape != (len(point), 3, 3):  # one frame for every point
+        rot = np.broadcast_to(rot, (len(point), 3, 3))
+    rot = np.ascontiguousarray(rot)
     arm = skew(point - pos) @ rot  # [lever]× R: v = R ζ_v - lever × (R ζ_ω)
     v = stacked_dot(np.concatenate([rot, -arm], axis=2), zeta)
     return v, stacked_dot(rot, zeta[3:]) if rotation else None
