@@ -20,11 +20,11 @@ from pincal.auto.crossval import cross_validate
 from pincal.auto.pipeline import calibrate
 from pincal.data.dataset import Dataset
 from pincal.identify.evaluation import evaluate
+from pincal.identify.groups import parameter_groups
 from pincal.identify.kfold import CrossValidation
 from pincal.identify.records import Choice
 from pincal.kinematics.effects import AnyEffect
 from pincal.options import MODELS
-from pincal.report.summary_table import parameter_groups
 from pincal.robot.robots import Robot, load_robot
 from pincal.simulation.truth import simulate
 

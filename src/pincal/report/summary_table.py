@@ -8,6 +8,7 @@ from pincal.auto.choice import choice_of
 from pincal.data.dataset import Dataset
 from pincal.identify.calibration import Calibration
 from pincal.identify.evaluation import ErrorStats, point_spread
+from pincal.identify.groups import MODEL_WORDS, parameter_groups
 from pincal.report.outcome import Outcome
 from pincal.report.report import extension_dict, findings, listed_names, report_warnings
 
@@ -25,34 +26,6 @@ OFFSETS_CAUSE = (
     "model=offsets fits no geometry: the effect may stand in for joint placement errors; "
     "see whether model=placements names it too"
 )
-
-
-#: What each model's parameters are, for the summary's words.
-MODEL_WORDS = {
-    "placements": "joint placement",
-    "poe": "twist (POE)",
-    "mdh": "modified DH",
-    "offsets": "joint offset",
-}
-#: What the unknowns beside the model's are, by the first part of their names.
-GROUP_WORDS = {"instrument": "instrument registration", "tool": "tool", "point": "fixed-point position"}
-
-
-def parameter_groups(cal: Calibration) -> list[tuple[str, int, int]]:
-    """The unknowns of ``cal`` by kind, in order: (words, identifiable, all), e.g.
-    ``("joint placement", 18, 36)``, ``("instrument registration", 6, 6)``, ``("tool", 3, 3)``."""
-    n_model = cal.model.n_params
-    keep = cal.identifiability.identifiable
-    groups: dict[str, list[int]] = {}
-    for i, name in enumerate(cal.names):
-        if i < n_model:
-            words = MODEL_WORDS.get(cal.model.kind, cal.model.kind)
-        else:
-            words = GROUP_WORDS.get(name.split(".")[0], "effect")
-        counts = groups.setdefault(words, [0, 0])
-        counts[0] += int(bool(keep[i]))
-        counts[1] += 1
-    return [(words, n, total) for words, (n, total) in groups.items()]
 
 
 def _others(cal: Calibration) -> str:
