@@ -24,6 +24,7 @@ from pincal.cli.common import (
 )
 from pincal.cli.deliver_options import GEOMETRY
 from pincal.cli.flags import as_flags
+from pincal.cli.gravity_options import check_gravity_options, warn_unused_gravity
 from pincal.cli.pull_options import pull
 from pincal.data.dataset import Dataset
 from pincal.errors import DataError
@@ -128,10 +129,12 @@ def run(args: argparse.Namespace) -> int:
     if args.holdout is not None:
         data, test = data.split(args.holdout, args.seed)
     args.extend = default_extension(args.extend, args.measure, data)
+    check_gravity_options(args, args.extend)
     progress = progress_line("calibration")  # the diagnosis, then the nested cross-validation
     cal = _fit(args, robot, data, test, progress)
     end_progress(progress)
     cal = plausible(cal, data, args)
+    warn_unused_gravity(args, cal)
     result = outcome(cal, data, test, args.noise, args.folds, args.seed)
     print(as_flags(summary(cal, data, test, result)))
     files: list[tuple[str | Path, str | bytes]] = []
