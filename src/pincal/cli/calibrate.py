@@ -29,7 +29,7 @@ from pincal.cli.pull_options import pull
 from pincal.data.dataset import Dataset
 from pincal.errors import DataError
 from pincal.export.ur_yaml import robot_ur_chain, write_ur_kinematics
-from pincal.export.urdf_writer import check_frame_name, corrected_files, sidecar_path
+from pincal.export.urdf_writer import check_frame_name, corrected_files, origin_changes, sidecar_path
 from pincal.files import STDIN, atomic_write_many
 from pincal.identify.calibration import Calibration
 from pincal.report.outcome import Outcome, outcome
@@ -153,6 +153,9 @@ def run(args: argparse.Namespace) -> int:
     if "urdf" in extra:
         print(f"corrected URDF written to {extra['urdf']}; registration and tool (not in a URDF) to ", end="")
         print(extra["sidecar"])
+        print("joint origins in the corrected URDF, moved and turned from the input's:")
+        for change in origin_changes(cal):
+            print(f"  {change.text()}")
     if args.report is not None:
         print(f"report written to {args.report}")
     print(

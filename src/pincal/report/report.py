@@ -13,6 +13,7 @@ import numpy as np
 import pinocchio as pin
 
 from pincal.data.dataset import Dataset
+from pincal.export.urdf_writer import origin_changes
 from pincal.identify.calibration import Calibration
 from pincal.identify.evaluation import (
     ErrorStats,
@@ -163,6 +164,7 @@ def report_dict(
         "balance": None if cal.balance is None else cal.balance.to_dict(),
         "solver": {"jacobian_evaluations": cal.n_evaluations, "message": cal.message},
         "excluded_poses": [{"row": row, "residual_mm": size} for row, size in cal.excluded],
+        "joint_changes": [change.to_dict() for change in origin_changes(cal)],
         "parameters": parameter_rows(cal),
         "placements": [p.to_dict() for p in found[0]],
         "warnings": report_warnings(cal, data, test, found),
