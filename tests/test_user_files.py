@@ -331,3 +331,60 @@ def test_write_csv_writes_what_read_csv_reads_back(tmp_path: Path, degrees: bool
     written = np.loadtxt(path, delimiter=",", skiprows=1)
     assert np.allclose(written[:, 0], np.rad2deg(q[:, 0]) if degrees else q[:, 0])
     assert np.allclose(written[:, 1], q[:, 1] * (1e3 if units == "mm" else 1.0))
+
+
+def test_socket_files_with_another_separator_are_named(
+    capsys: pytest.CaptureFixture[str], ur5: pincal.Robot, tmp_path: Path
+) -> None:
+    q = ur5.random_configurations(6, np.random.default_rng(1), 0.05)
+    folder = tmp_path / "holes"
+    folder.mkdir()
+    for k in range(2):
+        rows = q[3 * k : 3 * k + 3]
+        text = "\n".join(";".join(repr(float(v)) for v in row) for row in rows)
+        (folder / f"hole_{k}.csv").write_text(text + "\n")
+    line = one_error_line(capsys, "calibrate", "ur5", folder, "--point-distance", "0,1=0.05")
+    assert "semicolons" in line and "hole_0.csv" in line, line
+
+
+def test_program_targets_in_metres_read_as_millimetres_are_refused(
+    capsys: pytest.CaptureFixture[str], ur5: pincal.Robot, positions: Path, tmp_path: Path
+) -> None:
+    """Read as millimetres, metres put every target inside the robot's base: it compensated them
+    without a word."""
+    cal = pincal.calibrate(ur5, pincal.read_csv(positions, ur5.joint_names), params="all", extension="none")
+    urdf = tmp_path / "cal.urdf"
+    pincal.write_corrected_urdf(cal, urdf)
+    q = ur5.random_configurations(4, np.random.default_rng(5), 0.1)
+    tips = np.array([ur5.frame_placement(row).translation for row in q])  # [m], within reach
+    program = tmp_path / "targets.csv"
+    program.write_text("x,y,z\n" + "\n".join(",".join(repr(float(v)) for v in tip) for tip in tips) + "\n")
+    out = tmp_path / "comp.csv"
+    args = ("compensate", "ur5", urdf, program, "--task", "position", "-o", out)
+    line = one_error_line(capsys, *args, "--units", "mm")
+    assert "drop --units mm" in line, line
+    assert not out.exists()
+    code, _, err = run(capsys, *args)
+    assert code == 0, err
+
+
+def test_recording_options_with_a_csv_program_or_visits_are_said(
+    capsys: pytest.CaptureFixture[str], ur5: pincal.Robot, positions: Path, tmp_path: Path
+) -> None:
+    """``compensate`` and ``accuracy`` read recordings too; given a CSV, their recording options
+    change nothing: a warning names them (they passed in silence)."""
+    cal = pincal.calibrate(ur5, pincal.read_csv(positions, ur5.joint_names), params="all", extension="none")
+    urdf = tmp_path / "cal.urdf"
+    pincal.write_corrected_urdf(cal, urdf)
+    lines = positions.read_text().splitlines()
+    program = tmp_path / "program.csv"
+    program.write_text("\n".join(",".join(line.split(",")[:6]) for line in lines[:4]) + "\n")
+    args = ("compensate", "ur5", urdf, program, "-o", tmp_path / "c.csv", "--task", "position")
+    code, _, err = run(capsys, *args, "--joint-topic", "/js")
+    assert code == 0 and "--joint-topic" in err and "warning" in err, err
+    visits = tmp_path / "visits.csv"
+    rows = [f"{line},{k % 3}" for k, line in enumerate(lines[1:10])]
+    visits.write_text("\n".join([f"{lines[0]},pose", *rows]) + "\n")
+    code, _, err = run(capsys, "accuracy", "ur5", visits, "--pose-tolerance", "0.01", "--static-time", "2")
+    said = [line for line in err.splitlines() if "ROS recordings only" in line]
+    assert code == 0 and len(said) == 1 and "--pose-tolerance" in said[0] and "--static-time" in said[0], err

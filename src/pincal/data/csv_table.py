@@ -97,6 +97,14 @@ def _check_separator(path: str | Path, line: str, header: list[str]) -> None:
             )
 
 
+def other_separator(line: str) -> str | None:
+    """The name of the separator other than a comma that splits ``line`` into several cells, when
+    the line has no comma (``semicolons``, ``tabs``, ...), else None."""
+    if "," in line:
+        return None
+    return next((name for sep, name in _OTHER_SEPARATORS.items() if len(line.strip().split(sep)) > 1), None)
+
+
 def _separator_hint(line: str, n_fields: int) -> str:
     """``: ... separated by NAME`` when another separator splits a data row into the header's fields."""
     for sep, name in _OTHER_SEPARATORS.items():
