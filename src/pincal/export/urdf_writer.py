@@ -167,9 +167,12 @@ def moved_origins(source: bytes, moves: dict[str, pin.SE3]) -> bytes:
     return _prolog(source) + etree.tostring(root, encoding="UTF-8") + b"\n"
 
 
-def _as_written(origin: pin.SE3) -> pin.SE3:
-    """An origin as the URDF's text holds it (its numbers written and read back)."""
+def _as_written(origin: pin.SE3, given: etree._Element | None = None) -> pin.SE3:
+    """An origin as the URDF's text holds it (its numbers written and read back), written near
+    the input's ``<origin>`` ``given`` as the corrected URDF writes it."""
     element = etree.Element("joint")
+    if given is not None:
+        etree.SubElement(element, "origin", {k: v for k, v in given.attrib.items() if k in ("xyz", "rpy")})
     _set_origin(element, origin)
     return _origin(element.find("origin"))
 
@@ -181,7 +184,10 @@ def complete(cal: Calibration) -> dict[str, Any] | None:
     if cal.urdf_fit is None:
         return None
     written, full = corrected_origins(cal.written), corrected_origins(cal)
-    moves = {name: _as_written(written[name]).actInv(full[name]) for name in cal.robot.joint_names}
+    given = {j.get("name"): j.find("origin") for j in _read(cal.robot).findall("joint")}
+    moves = {
+        name: _as_written(written[name], given[name]).actInv(full[name]) for name in cal.robot.joint_names
+    }
     _, reg, tool = cal.split()
     if cal.measurement.measure.fixed_points and _ball_joint(_read(cal.robot), cal) is not None:
         ball = cal.written.split()[2].translation  # the written tip is the URDF alone's ball
