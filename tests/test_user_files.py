@@ -162,8 +162,12 @@ def test_a_reading_that_keeps_the_robot_still_names_no_unit(
         (("--payload", "2,0,0,0.1", "--extend", "none"), "--payload"),
         (("--payload", "2,0,0,0.1", "--extend", "gear_harmonic:elbow_joint"), "--payload"),
         (("--payload", "2,0,0,0.1", "--extend", "encoder_scale:elbow_joint"), "--payload"),
+        (
+            ("--payload", "2,0,0,0.1", "--extend", "encoder_scale:elbow_joint+lost_motion:wrist_1_joint"),
+            "--payload",
+        ),
     ],
-    ids=["none", "harmonic", "scale"],
+    ids=["none", "harmonic", "scale", "several"],
 )
 def test_gravity_options_without_a_gravity_effect_are_refused(
     capsys: pytest.CaptureFixture[str], positions: Path, tmp_path: Path, options: tuple[str, ...], named: str

@@ -1,9 +1,10 @@
 """``--payload`` and ``--inertias`` are only for the effects that carry a gravity torque.
 
 They change what a joint carries (:func:`pincal.kinematics.effects.gravity_torques`), which only
-``joint_compliance`` and ``backlash`` read. With ``--extend none`` or another named effect they
-would change nothing: refused before the fit. With ``--extend auto`` they shape the candidates,
-but a model that keeps no gravity effect writes nothing of them: said in a warning.
+the effects that follow it read (``joint_compliance``, ``backlash``). With ``--extend none`` or
+only other named effects they would change nothing: refused before the fit. With ``--extend
+auto`` they shape the candidates, but a model that keeps no gravity effect writes nothing of them:
+said in a warning.
 """
 
 from __future__ import annotations
@@ -14,9 +15,10 @@ from typing import Any
 
 from pincal.cli.common import warn
 from pincal.errors import DataError
+from pincal.kinematics.effects import KINDS
 
 #: Effects whose value depends on the gravity torque a joint carries.
-GRAVITY_EFFECTS = ("joint_compliance", "backlash")
+GRAVITY_EFFECTS = tuple(name for name, kind in KINDS.items() if kind.loaded)
 
 
 def _given(args: argparse.Namespace) -> list[str]:
@@ -46,9 +48,9 @@ def check_gravity_options(args: argparse.Namespace, extend: str) -> None:
 
 
 def kept_effects(cal: Any) -> list[str]:
-    """The effects a calibration kept (its ``extension``: none, one, or a list)."""
+    """The effects a calibration kept (its ``extension``: none, one, or several)."""
     found = cal.extension
-    items = list(found) if isinstance(found, list | tuple) else [] if found is None else [found]
+    items = [] if found is None else list(getattr(found, "parts", (found,)))
     return [str(getattr(item, "effect", "")) for item in items]
 
 
