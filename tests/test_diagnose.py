@@ -215,18 +215,26 @@ def test_cli_diagnose_json_and_plot(get_robot, tmp_path: Path, capsys) -> None:
 
 
 def test_cli_diagnose_missing_plots_folder(get_robot, tmp_path: Path, capsys) -> None:
-    """A ``--plots`` folder that does not exist: exit 2 with one error line, nothing written."""
+    """A ``--plots`` folder that does not exist is created (it used to be refused), and holds the
+    one PNG; ``--plot FILE.png`` writes the same figure there, as ``accuracy --plot`` does."""
     robot = get_robot("ur5")
     _, data, _ = pincal.simulate(robot, n_fit=20, n_test=1, seed=3)
     csv = tmp_path / "data.csv"
     pincal.write_csv(csv, data)
     out = tmp_path / "diagnosis.json"
+    folder = tmp_path / "no_such_folder" / "figures"
     code, _, err = run_cli(
-        capsys, "diagnose", "ur5", csv, "--json", out, "--plots", tmp_path / "no_such_folder"
+        capsys, "diagnose", "ur5", csv, "--json", out, "--plots", folder, "--params", "all"
     )
+    assert code == 0, err
+    pngs = list(folder.glob("*.png"))
+    assert len(pngs) == 1 and pngs[0].read_bytes()[:8] == PNG_SIGNATURE
+    one = tmp_path / "cause.png"
+    code, _, err = run_cli(capsys, "diagnose", "ur5", csv, "--plot", one, "--params", "all")
+    assert code == 0, err
+    assert one.read_bytes() == pngs[0].read_bytes()
+    code, _, err = run_cli(capsys, "diagnose", "ur5", csv, "--plots", one, "--params", "all", "--force")
     assert_one_error_line(code, err)
-    assert not out.exists()
-    assert not (tmp_path / "no_such_folder").exists()
 
 
 #: (EFFECT:JOINT, seed, RMS at the tip [m]) hidden in ur5 data for ``calibrate --extend``.

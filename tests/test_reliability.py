@@ -189,12 +189,16 @@ def _cli(args: list[str], **kwargs: object) -> subprocess.CompletedProcess[str]:
 
 
 def test_closed_or_full_standard_streams(files: dict[str, Path], tmp_path: Path) -> None:
-    """A closed stdout: quiet 141, its report written; a closed stderr: the run succeeds; stdout on
-    a full disk: one line, exit 2; never a traceback."""
+    """A stdout closed before the run: refused in one line, exit 2, nothing written (it used to end
+    quietly, the tables lost); a closed stderr: the run succeeds; stdout on a full disk: one line,
+    exit 2; never a traceback."""
     args = ["calibrate", "ur5", str(files["pos"]), *FAST, "--report", str(tmp_path / "r.json")]
     closed = _cli(args, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, preexec_fn=lambda: os.close(1))
-    assert closed.returncode == 141 and closed.stderr == "", closed.stderr
-    assert json.loads((tmp_path / "r.json").read_text())["n_poses"] == 30
+    assert closed.returncode == 2, closed.stderr
+    assert closed.stderr.count("\n") == 1 and closed.stderr.startswith(
+        "pincal: error: standard output is closed"
+    )
+    assert not (tmp_path / "r.json").exists()
     quiet = _cli(
         [*args, "--force"], capture_output=False, stdout=subprocess.DEVNULL, preexec_fn=lambda: os.close(2)
     )

@@ -32,7 +32,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from pincal.errors import DataError, OutputError
-from pincal.inputs import forget_run_inputs, input_named, note_input, read_bytes
+from pincal.inputs import forget_run_inputs, input_named, note_input, note_standard_input, read_bytes
 
 #: Largest input file read [bytes] (a measurement CSV of a million poses is about 100 MB).
 MAX_INPUT_BYTES = 500_000_000
@@ -118,6 +118,7 @@ def _read_stdin(what: str) -> bytes:
         raise DataError(
             f"the {what} is '-' (standard input), a terminal: pipe the CSV in, e.g. '- < data.csv'"
         )
+    note_standard_input(what)
     buffer = getattr(stream, "buffer", None)
     if buffer is not None:
         return bytes(buffer.read(MAX_INPUT_BYTES + 1))

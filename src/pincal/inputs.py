@@ -63,6 +63,19 @@ def note_input(path: str | Path, what: str) -> None:
         _inodes.setdefault((info.st_dev, info.st_ino), what)
 
 
+def note_standard_input(what: str) -> None:
+    """Remember the file standard input reads (``- < data.csv``) as an input of the run: an output
+    named after it would replace the data being read. A pipe or a terminal is no file to protect."""
+    if not _scope:
+        return
+    try:
+        info = os.fstat(0)
+    except OSError:
+        return
+    if stat.S_ISREG(info.st_mode):
+        _inodes.setdefault((info.st_dev, info.st_ino), f"{what} (standard input)")
+
+
 def input_named(path: str | Path) -> str | None:
     """What the run read from ``path`` ("data file", ...), or None when it is no input of the run
     (symlinks and hard links resolved)."""

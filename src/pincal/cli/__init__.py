@@ -2,11 +2,12 @@
 
 Exit codes: 0 success, its output printed and its warnings (``pincal: warning: ...``) said at
 the end; 2 unusable input, with one ``pincal: error: ...`` line on stderr and nothing else (not
-the tables of a result then refused, on stdout); 130 interrupted (Ctrl-C) and 143 terminated
-(SIGTERM), with one such line and no partial output; 141 standard output closed (``>&-``) or
-closed early by its reader (``| head``), quietly; 1 a bug, said in one ``pincal: bug: ...`` line
-(the traceback with ``PINCAL_TRACEBACK=1``). A closed standard error never makes a run fail: its
-lines are dropped. Every output file is written whole or not at all (:mod:`pincal.files`).
+the tables of a result then refused, on stdout), and a standard output closed before the run
+(``>&-``); 130 interrupted (Ctrl-C) and 143 terminated (SIGTERM), with one such line and no
+partial output; 141 standard output closed early by its reader (``| head``), quietly; 1 a bug,
+said in one ``pincal: bug: ...`` line (the traceback with ``PINCAL_TRACEBACK=1``). A closed
+standard error never makes a run fail: its lines are dropped. Every output file is written whole
+or not at all (:mod:`pincal.files`).
 """
 
 from __future__ import annotations
@@ -39,6 +40,12 @@ class Terminated(BaseException):
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``pincal`` command."""
     closed = _reserve_closed_channels()
+    if closed[1]:  # before the run: a broken pipe later is quiet, a channel closed on purpose is said
+        return _error(
+            "standard output is closed (>&-): pincal prints its results there; redirect it to a file, "
+            "or to /dev/null to drop them (> /dev/null), instead of closing it",
+            2,
+        )
     with _terminate_unwinds():
         try:
             with run_scope():  # no output of the run may be one of its inputs

@@ -20,7 +20,7 @@ from pincal.accuracy.visits import (
     programmed,
 )
 from pincal.cli.common import check_outputs, load_data, robot_options, urdf_path, warn
-from pincal.cli.recording_data import read_poses
+from pincal.cli.recording_data import read_poses, unused_recording_options
 from pincal.data.dataset import UNITS, Dataset
 from pincal.data.recording_reader import is_recording
 from pincal.errors import DataError
@@ -28,6 +28,8 @@ from pincal.export.calibrated_robot import CalibratedRobot, load_calibration
 from pincal.files import atomic_write_many
 from pincal.robot.robots import Robot, load_robot
 
+#: ``--pose-tolerance``'s default [rad].
+POSE_TOLERANCE = 1e-3
 #: The sidecar's suffix: ``--calibration`` may name the sidecar instead of the URDF beside it.
 SIDECAR = ".calibration.json"
 
@@ -87,6 +89,11 @@ def run(args: argparse.Namespace) -> int:
     inputs = {"data file": args.data, "input URDF": urdf_path(args.robot), "calibration": args.calibration}
     check_outputs(args, [args.report, args.plot], inputs)
     result = figures(args)
+    unused = unused_recording_options(args, args.data)
+    if not is_recording(args.data) and args.pose_tolerance != POSE_TOLERANCE:
+        unused.append("--pose-tolerance (ROS recordings only)")
+    if unused:
+        warn(args, f"ignored for a CSV: {'; '.join(unused)}")
     few = too_few_cycles(result)
     if few is not None:
         warn(args, few)

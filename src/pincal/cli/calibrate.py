@@ -24,11 +24,12 @@ from pincal.cli.common import (
 )
 from pincal.cli.deliver_options import GEOMETRY
 from pincal.cli.flags import as_flags
+from pincal.cli.gravity_options import check_gravity_options, warn_unused_gravity
 from pincal.cli.pull_options import pull
 from pincal.data.dataset import Dataset
 from pincal.errors import DataError
 from pincal.export.ur_yaml import robot_ur_chain, write_ur_kinematics
-from pincal.export.urdf_writer import check_frame_name, corrected_files, sidecar_path
+from pincal.export.urdf_writer import check_frame_name, corrected_files, origin_changes, sidecar_path
 from pincal.files import STDIN, atomic_write_many
 from pincal.identify.calibration import Calibration
 from pincal.report.outcome import Outcome, outcome
@@ -128,10 +129,12 @@ def run(args: argparse.Namespace) -> int:
     if args.holdout is not None:
         data, test = data.split(args.holdout, args.seed)
     args.extend = default_extension(args.extend, args.measure, data)
+    check_gravity_options(args, args.extend)
     progress = progress_line("calibration")  # the diagnosis, then the nested cross-validation
     cal = _fit(args, robot, data, test, progress)
     end_progress(progress)
     cal = plausible(cal, data, args)
+    warn_unused_gravity(args, cal)
     result = outcome(cal, data, test, args.noise, args.folds, args.seed)
     print(as_flags(summary(cal, data, test, result)))
     files: list[tuple[str | Path, str | bytes]] = []
@@ -150,6 +153,9 @@ def run(args: argparse.Namespace) -> int:
     if "urdf" in extra:
         print(f"corrected URDF written to {extra['urdf']}; registration and tool (not in a URDF) to ", end="")
         print(extra["sidecar"])
+        print("joint origins in the corrected URDF, moved and turned from the input's:")
+        for change in origin_changes(cal):
+            print(f"  {change.text()}")
     if args.report is not None:
         print(f"report written to {args.report}")
     print(

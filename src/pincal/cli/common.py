@@ -23,7 +23,7 @@ from pincal.errors import DataError, ImplausibleError, OutputError
 from pincal.files import STDIN, output_target
 from pincal.identify.fixed_points import parse_point_distances
 from pincal.identify.kinds import get_kind
-from pincal.inputs import input_named
+from pincal.inputs import input_named, note_standard_input
 from pincal.options import ROTATION_WEIGHT
 from pincal.plausibility.judge import judge_calibration
 from pincal.plausibility.past_tip import Reading, check_past_tip
@@ -110,6 +110,9 @@ def check_outputs(args: argparse.Namespace, outputs: Sequence[Path | None], inpu
     """
     inputs = {**inputs, "kinematics YAML": getattr(args, "kinematics", None)}
     inputs["--inertias URDF"] = getattr(args, "inertias", None)
+    for label, p in inputs.items():
+        if str(p) == STDIN:
+            note_standard_input(label)  # '- < data.csv': the output must not be data.csv
     sources = {label: Path(str(p)) for label, p in inputs.items() if p is not None and str(p) != STDIN}
     sources = {label: p for label, p in sources.items() if p.is_file()}
     seen: list[Path] = []

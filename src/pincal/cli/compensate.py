@@ -3,18 +3,20 @@
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
 import numpy as np
 
 from pincal.cli.common import check_outputs, robot_options, urdf_path, warn
 from pincal.errors import DataError
 from pincal.export.urdf_writer import sidecar_path
-from pincal.robot.robots import load_robot
+from pincal.plausibility.verdict import robot_size
+from pincal.robot.robots import Robot, load_robot
 
 
 def run(args: argparse.Namespace) -> int:
     """Run the command; 0 on success."""
-    from pincal.cli.recording_data import recording_options
+    from pincal.cli.recording_data import recording_options, unused_recording_options
     from pincal.data.dataset import Targets, csv_columns, read_program
     from pincal.data.recording_reader import is_recording
     from pincal.data.recordings import read_static_joints
@@ -37,7 +39,12 @@ def run(args: argparse.Namespace) -> int:
         print(f"{args.program}: {len(program)} static poses")
     else:
         program = read_program(args.program, nominal, args.degrees, args.units, args.quaternion_order)
+        if isinstance(program, Targets):
+            check_target_units(program, nominal, args.units)
     header = [] if is_recording(args.program) else csv_columns(args.program)
+    unused = unused_recording_options(args, args.program)
+    if unused:
+        warn(args, f"ignored for a CSV program: {'; '.join(unused)}")
     targets = [c for c in ("x", "y", "z", "qw", "qx", "qy", "qz") if c in header]
     if not isinstance(program, Targets) and targets:
         warn(
@@ -59,3 +66,27 @@ def run(args: argparse.Namespace) -> int:
         print(f"  {line}")
     print(f"written to {args.output}")
     return 0
+
+
+#: Share of the robot's size within which every target of a program lies around the base's origin
+#: when its metres were read as millimetres (a real program's targets are the arm's reach away).
+INSIDE_BASE = 0.01
+
+
+def check_target_units(targets: Any, robot: Robot, units: str) -> None:
+    """Refuse tool targets that all lie inside the robot's base (within :data:`INSIDE_BASE` of its
+    size from the base's origin): no program sends the tool there, metres read with ``--units mm`` do.
+
+    Raises:
+        DataError: with the unit that would put them within reach.
+    """
+    size = robot_size(robot)
+    farthest = float(np.linalg.norm(targets.positions, axis=1).max(initial=0.0))
+    if farthest >= INSIDE_BASE * size:
+        return
+    metres = units == "mm" and INSIDE_BASE * size <= farthest * 1e3 <= 2 * size
+    hint = "the x,y,z look like metres: drop --units mm" if metres else "check the unit of x,y,z (--units)"
+    raise DataError(
+        f"every tool target lies within {farthest * 1e3:.3g} mm of the robot's base origin, inside the "
+        f"robot ({size:.3g} m in size): {hint}"
+    )

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 import numpy as np
 
@@ -18,10 +19,11 @@ from pincal.cli.common import (
     plausible,
     progress_line,
     urdf_path,
+    warn,
 )
 from pincal.cli.flags import as_flags
 from pincal.data.dataset import atomic_write
-from pincal.errors import DataError, IdentifiabilityError
+from pincal.errors import DataError, IdentifiabilityError, OutputError
 from pincal.json_text import json_text
 from pincal.report.outcome import outcome
 
@@ -31,9 +33,13 @@ def run(args: argparse.Namespace) -> int:
     shared pipeline, so that both name the same cause), its candidates, and what remains."""
     from pincal.report.plots import plot_diagnosis
 
-    if args.plots is not None and not args.plots.is_dir():
-        raise DataError(f"--plots {args.plots}: the folder does not exist, create it first")
-    check_outputs(args, [args.json], {"data file": args.data, "input URDF": urdf_path(args.robot)})
+    if args.plot is not None and args.plots is not None:
+        raise DataError("give either --plot FILE.png or --plots DIR, not both")
+    if args.plots is not None and args.plots.exists() and not args.plots.is_dir():
+        raise DataError(
+            f"--plots {args.plots} is a file, not a folder: give a folder, or --plot {args.plots}"
+        )
+    check_outputs(args, [args.json, args.plot], {"data file": args.data, "input URDF": urdf_path(args.robot)})
     robot = chain(args)
     data = load_data(args.data, robot, args)
     check_applicable(args, data)
@@ -77,13 +83,20 @@ def run(args: argparse.Namespace) -> int:
     print(as_flags(f"residual: {found.residual.sentence()}; {found.residual.how}"))
     if found.caveat():
         print(as_flags(f"note: {found.caveat()}"))
-    if args.plots is not None and not result.baseline.measurement.measure.by_pairs:
+    wanted = args.plot is not None or args.plots is not None
+    if wanted and not result.baseline.measurement.measure.by_pairs:
         for k, step in enumerate((result, *choice.more)):  # each cause with its own evidence
             name = step.cause.extension.effect if step.cause else found.residual.verdict
-            plot = args.plots / f"diagnose_{name}{'_' + str(k + 1) if k else ''}.png"
+            suffix = f"_{k + 1}" if k else ""
+            if args.plot is not None:  # a second cause beside it as FILE_2.png
+                plot = args.plot.with_name(f"{args.plot.stem}{suffix}{args.plot.suffix}")
+            else:
+                plot = _created(args.plots) / f"diagnose_{name}{suffix}.png"
             check_outputs(args, [plot], {"data file": args.data, "input URDF": urdf_path(args.robot)})
             path = plot_diagnosis(step, data, plot, found.residual, as_flags)
             print(f"plot written to {path}")
+    elif wanted:
+        warn(args, "no plot written: distance data has no per-pose residual to plot")
     if args.json is not None:
         assert cal.plausibility is not None  # plausible() gives every fit its verdict
         last = choice.more[-1] if choice.more else result
@@ -99,3 +112,16 @@ def run(args: argparse.Namespace) -> int:
         print(f"written to {args.json}")
     print(as_flags(found.verdict_line()))
     return 0
+
+
+def _created(folder: Path) -> Path:
+    """``--plots DIR``, created (with its parents) when missing.
+
+    Raises:
+        OutputError: the folder cannot be created.
+    """
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"cannot create the --plots folder {folder}: {exc.strerror or exc}") from None
+    return folder

@@ -44,6 +44,7 @@ FLAGS = {
     "payload": "--payload",
     "point_distances": "--point-distance",
     "quaternion_order": "--quaternion-order",
+    "rename": "--columns",
     "seed": "--seed",
     "sockets": "--sockets",
     "time_offset": "--time-offset",

@@ -54,6 +54,7 @@ GROUPS: dict[str, list[str]] = {
         "--loss",
         "--outliers",
         "--partial",
+        "--prior",
     ],
     "automatic choice": ["--params", "--extend", "--folds", "--nested", "--seed"],
     "planning": [
@@ -66,7 +67,16 @@ GROUPS: dict[str, list[str]] = {
         "--instrument",
         "--reach",
     ],
-    "output": ["--report", "--output", "--add-frame", "--plots", "--force", "--accept-implausible"],
+    "output": [
+        "--report",
+        "--output",
+        "--add-frame",
+        "--plot",
+        "--plots",
+        "--force",
+        "--force-fit",
+        "--accept-implausible",
+    ],
 }
 
 
@@ -113,4 +123,18 @@ def _group(command: argparse.ArgumentParser) -> None:
     for title, actions in groups.items():
         if actions:
             command.add_argument_group(title)._group_actions.extend(actions)
+    for action in command._actions:
+        _show_default(action)
     command.epilog = command.epilog or f"Documentation: {DOCS}"
+
+
+def _show_default(action: argparse.Action) -> None:
+    """Add ``(default: VALUE)`` to the help of an option whose help does not say its default (a
+    switch's is off; an option without one says what it does when not given itself)."""
+    value = action.default
+    if not action.help or not action.option_strings or value in (None, False, [], (), argparse.SUPPRESS):
+        return
+    text = str(value)
+    if "default" in action.help.lower() or f"({text})" in action.help:
+        return
+    action.help += f" (default: {text.replace('%', '%%')})"

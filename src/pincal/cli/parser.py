@@ -61,11 +61,11 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     for add in (_add_calibrate, _add_diagnose, _add_demo, _add_tcp, _add_compensate):
         add(sub)
-    add_plan(sub, _add_robot_options, _add_force)
+    add_plan(sub, _add_robot_options, _add_force, add_model)
     _add_twists(sub)
     add_template(sub, _add_robot_options, _add_force)
     add_extract(sub)
-    add_accuracy(sub)
+    add_accuracy(sub, lambda cmd: _add_robot_options(cmd, inertias=False))
     group_options(parser)  # --help in groups (data, model, automatic choice, output), docs cited
     return parser
 
@@ -75,8 +75,14 @@ def _add_calibrate(sub: Any) -> None:
     cal = sub.add_parser("calibrate", help="identify a kinematic model from measurements")
     _add_data_options(cal)
     cal.add_argument("--test", type=Path, help="held-out poses (CSV) for the error after calibration")
-    cal.add_argument("--holdout", type=fraction, help="fraction of the poses to hold out instead of --test")
-    cal.add_argument("--seed", type=seed, default=0, help="seed of the --holdout split")
+    cal.add_argument(
+        "--holdout",
+        type=fraction,
+        help="fraction of the poses to hold out instead of --test (default: none, every pose is fitted)",
+    )
+    cal.add_argument(
+        "--seed", type=seed, default=0, help="seed of the --holdout split and of the cross-validation folds"
+    )
     cal.add_argument("--report", type=Path, help="write the JSON report here")
     add_noise(cal)
     cal.add_argument(
@@ -124,7 +130,18 @@ def _add_diagnose(sub: Any) -> None:
     _add_data_options(diag)
     report_option(diag, "the diagnosis")
     add_noise(diag)
-    diag.add_argument("--plots", type=Path, metavar="DIR", help="write a PNG of the named cause here")
+    diag.add_argument(
+        "--plot",
+        type=Path,
+        metavar="FILE.png",
+        help="plot the named cause (or the residual) as a PNG here; a further cause as FILE_2.png, ...",
+    )
+    diag.add_argument(
+        "--plots",
+        type=Path,
+        metavar="DIR",
+        help="write that PNG into this folder (created if missing) as diagnose_CAUSE.png instead",
+    )
     diag.add_argument("--folds", type=folds, default=5, help="folds of the cross-validation (2 or more)")
     diag.add_argument("--seed", type=seed, default=0, help="seed of the folds")
     add_baseline_params(diag, parameters)
@@ -134,7 +151,7 @@ def _add_diagnose(sub: Any) -> None:
 def _add_demo(sub: Any) -> None:
     """``pincal demo``."""
     demo = sub.add_parser("demo", help="calibrate bundled data and print before/after tables")
-    demo.add_argument("--seed", type=seed, default=0)
+    demo.add_argument("--seed", type=seed, default=0, help="seed of the simulated robot and measurements")
 
 
 def _add_tcp(sub: Any) -> None:
@@ -143,7 +160,14 @@ def _add_tcp(sub: Any) -> None:
     tcp.add_argument(
         "poses", type=Path, help="CSV: x,y,z,a,b,c (deg) or x,y,z,qw,qx,qy,qz, or joints with --robot"
     )
-    tcp.add_argument("--orientation", choices=ORIENTATIONS, default="default")
+    tcp.add_argument(
+        "--orientation",
+        choices=ORIENTATIONS,
+        default="default",
+        help="default: every row touches the TCP point and the tool frame is the flange's; z: the last two "
+        "rows are the origin and a move along the tool's +Z (its Z axis); zx: the last three are the "
+        "origin, a move along +X and one along +Z (the whole tool frame)",
+    )
     tcp.add_argument("--units", choices=sorted(UNITS), default="m", help="unit of x,y,z and of the TCP")
     report_option(tcp, "the result")
     tcp.add_argument("--columns", type=mapping, help="column names of the file, e.g. x=X_mm,y=Y_mm,a=A_deg")
@@ -161,7 +185,11 @@ def _add_compensate(sub: Any) -> None:
     comp = sub.add_parser(
         "compensate", help="joint commands that make the calibrated robot reach the program"
     )
-    comp.add_argument("robot", help="the nominal robot the program was written for (URDF or bundled name)")
+    comp.add_argument(
+        "robot",
+        help=f"the nominal robot the program was written for: a .urdf or .xacro path or a bundled robot "
+        f"({', '.join(BUNDLED)})",
+    )
     _add_robot_options(comp)
     comp.add_argument(
         "calibration",
@@ -170,27 +198,44 @@ def _add_compensate(sub: Any) -> None:
         "applies to ROBOT (with --kinematics: the controller's calibration the program was written for)",
     )
     comp.add_argument(
-        "program", type=Path, help="CSV: a column per chain joint, or tool targets x,y,z[,qw,qx,qy,qz]"
+        "program",
+        type=Path,
+        help="CSV: a column per chain joint, or tool targets x,y,z[,qw,qx,qy,qz]; or a ROS recording of "
+        "the program run (its static poses are the commands)",
     )
     comp.add_argument("-o", "--output", type=Path, required=True, help="the compensated program (CSV)")
     comp.add_argument("--task", choices=["pose", "position"], help="default: pose after pose data")
     comp.add_argument("--degrees", action="store_true", help="revolute joint values in degrees (in and out)")
     comp.add_argument("--units", choices=sorted(UNITS), default="m", help="unit of x,y,z targets, prismatic")
-    add_recording_options(comp)
+    add_recording_options(comp, "PROGRAM")
     add_program_quaternion_order(comp)  # issue 31
     _add_force(comp)
+
+
+#: What each ``--model`` is, for its help.
+MODEL_HELP = (
+    "the error model: placements (default): 6 errors per joint placement, in the URDF's own joint "
+    "frames; poe: product-of-exponentials joint twists; mdh: modified DH with Hayati's beta (5 per "
+    "joint); offsets: joint zero offsets only"
+)
+
+
+def add_model(cmd: argparse.ArgumentParser) -> None:
+    """``--model``, with what each model is."""
+    cmd.add_argument("--model", choices=MODELS, default="placements", help=MODEL_HELP)
 
 
 def _add_twists(sub: Any) -> None:
     """``pincal twists``."""
     tw = sub.add_parser("twists", help="print the chain's nominal joint twists, checked against Pinocchio")
-    tw.add_argument("robot")
-    tw.add_argument("--tip")
+    tw.add_argument("robot", help=f"a .urdf or .xacro path or a bundled robot ({', '.join(BUNDLED)})")
+    tw.add_argument("--tip", help="the last frame of the chain (default: the robot's documented tip)")
     _add_robot_options(tw)
 
 
-def _add_robot_options(cmd: argparse.ArgumentParser, flag: str = "ROBOT") -> None:
-    """How ROBOT is read: a xacro's arguments and packages, a UR kinematics YAML on top."""
+def _add_robot_options(cmd: argparse.ArgumentParser, flag: str = "ROBOT", inertias: bool = True) -> None:
+    """How ROBOT is read: a xacro's arguments and packages, a UR kinematics YAML on top, and (with
+    ``inertias``, for the commands that compute gravity torques) the masses of another URDF."""
     cmd.add_argument(
         "--xacro-arg",
         action="append",
@@ -211,6 +256,8 @@ def _add_robot_options(cmd: argparse.ArgumentParser, flag: str = "ROBOT") -> Non
         metavar="FILE.yaml",
         help=f"a UR kinematics YAML (ur_description's format) applied on the UR {flag}",
     )
+    if not inertias:
+        return
     cmd.add_argument(
         "--inertias",
         metavar="URDF",
@@ -233,7 +280,7 @@ def _add_data_options(cmd: argparse.ArgumentParser) -> None:
         "hole_<name>.csv files, or a ROS recording (docs/recordings.md)",
     )
     cmd.add_argument("--tip", help="the measured frame (default: the robot's documented tip)")
-    cmd.add_argument("--model", choices=MODELS, default="placements")
+    add_model(cmd)
     cmd.add_argument(
         "--measure",
         choices=MEASURES,
@@ -259,7 +306,9 @@ def _add_data_options(cmd: argparse.ArgumentParser) -> None:
     cmd.add_argument(
         "--payload", type=payload, metavar="MASS,X,Y,Z", help="load on the tip [kg; m in the tip frame]"
     )
-    cmd.add_argument("--loss", choices=LOSSES, default="linear", help="robust loss for outliers")
+    cmd.add_argument(
+        "--loss", choices=LOSSES, default="linear", help="robust loss for outliers ('linear': least squares)"
+    )
     cmd.add_argument(
         "--outliers",
         type=sigmas,

@@ -11,25 +11,37 @@ from pincal.cli.values import vector3, vectors3
 from pincal.options import BUNDLED, MEASURES, MODELS, UNITS
 
 
-def add_plan(sub: Any, robot_options: Callable[[Any], None], force: Callable[[Any], None]) -> None:
-    """``pincal plan`` (``robot_options``, ``force``: the parser's shared option adders)."""
+def add_plan(
+    sub: Any,
+    robot_options: Callable[[Any], None],
+    force: Callable[[Any], None],
+    model: Callable[[Any], None] | None = None,
+) -> None:
+    """``pincal plan`` (``robot_options``, ``force``, ``model``: the parser's shared option adders)."""
     plan = sub.add_parser("plan", help="choose measurement poses for the accuracy of the calibrated robot")
     plan.add_argument("robot", help=f"a .urdf or .xacro path or a bundled robot ({', '.join(BUNDLED)})")
     robot_options(plan)
     plan.add_argument("--tip", help="the measured frame (default: the robot's documented tip)")
     plan.add_argument("--poses", type=count, required=True, help="number of poses to measure")
-    plan.add_argument("--model", choices=MODELS, default="placements")
-    plan.add_argument("--measure", choices=MEASURES, default="position")
+    if model is not None:
+        model(plan)
+    else:
+        plan.add_argument(
+            "--model", choices=MODELS, default="placements", help="the error model to calibrate"
+        )
+    plan.add_argument(
+        "--measure", choices=MEASURES, default="position", help="what the instrument will measure"
+    )
     plan.add_argument(
         "--candidates", type=count, default=1000, help="random feasible candidates to choose from"
     )
-    plan.add_argument("--seed", type=seed, default=0)
+    plan.add_argument("--seed", type=seed, default=0, help="seed of the random candidates")
     plan.add_argument(
         "--units",
         choices=sorted(UNITS),
         default="m",
         help="unit of the lengths given below (--tool-point, --tool-tolerance, --sockets, --point-distance, "
-        "--clearance, --instrument, --reach); prismatic joints in --task and -o are in metres",
+        "--clearance, --instrument, --reach) and of prismatic joints in --task and -o",
     )
     plan.add_argument(
         "--criterion",

@@ -9,7 +9,7 @@ from typing import Any
 
 from pincal.cli.numeric import real
 from pincal.cli.values import vector3
-from pincal.options import UNITS
+from pincal.options import BUNDLED, UNITS
 
 #: The recording options' defaults (said as ignored when given and no input is a recording).
 DEFAULTS: dict[str, str | float | None] = {
@@ -37,9 +37,11 @@ def offset(text: str) -> float:
     return real(text, "the time offset [s]", -86400.0, 86400.0)
 
 
-def add_recording_options(cmd: argparse.ArgumentParser) -> None:
-    """How a ROS recording given as DATA is read (ignored for a CSV)."""
-    group = cmd.add_argument_group("ROS recordings (rosbag2 folder, .mcap, .db3 or ROS 1 .bag as DATA)")
+def add_recording_options(cmd: argparse.ArgumentParser, what: str = "DATA") -> None:
+    """How a ROS recording given as ``what`` (DATA, PROGRAM) is read (ignored for a CSV)."""
+    group = cmd.add_argument_group(
+        f"ROS recordings (rosbag2 folder, .mcap, .db3 or ROS 1 .bag as {what}; not used for a CSV {what})"
+    )
     group.add_argument(
         "--joint-topic", default=DEFAULTS["joint_topic"], help="the sensor_msgs/JointState topic"
     )
@@ -57,13 +59,13 @@ def add_recording_options(cmd: argparse.ArgumentParser) -> None:
         "--static-band",
         type=band,
         default=DEFAULTS["static_band"],
-        help="a joint's range within a static pose [rad] (1e-4)",
+        help="a joint's range within a static pose [rad] (default 1e-4)",
     )
     group.add_argument(
         "--static-time",
         type=seconds,
         default=DEFAULTS["static_time"],
-        help="how long a static pose lasts at least [s] (0.5)",
+        help="how long a static pose lasts at least [s] (default 0.5)",
     )
 
 
@@ -88,10 +90,12 @@ def add_extract(sub: Any) -> None:
     _add_force(ext)
 
 
-def add_accuracy(sub: Any) -> None:
-    """``pincal accuracy``."""
+def add_accuracy(sub: Any, robot_options: Any = None) -> None:
+    """``pincal accuracy`` (``robot_options``: the parser's adder of how ROBOT is read)."""
     acc = sub.add_parser("accuracy", help="ISO 9283 pose accuracy and repeatability")
-    acc.add_argument("robot", help="a .urdf path or a bundled robot")
+    acc.add_argument("robot", help=f"a .urdf or .xacro path or a bundled robot ({', '.join(BUNDLED)})")
+    if robot_options is not None:
+        robot_options(acc)
     acc.add_argument("data", type=Path, help="CSV with a pose column, or a recording")
     acc.add_argument("--tip", help="the measured frame (default: the robot's documented tip)")
     acc.add_argument(
@@ -111,7 +115,7 @@ def add_accuracy(sub: Any) -> None:
         "--pose-tolerance",
         type=band,
         default=1e-3,
-        help="recordings: static poses within this of each other are one pose [rad] (1e-3)",
+        help="recordings: static poses within this of each other are one pose [rad] (default 1e-3)",
     )
     add_recording_options(acc)
     _add_force(acc)

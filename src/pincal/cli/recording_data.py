@@ -48,9 +48,11 @@ def recording_data(path: Path, joints: tuple[str, ...], args: argparse.Namespace
     return read_poses(path, joints, args).data
 
 
-def unused_recording_options(args: argparse.Namespace) -> list[str]:
-    """The recording options given when neither DATA nor ``--test`` is a recording."""
-    inputs = [p for p in (args.data, getattr(args, "test", None)) if p is not None]
+def unused_recording_options(args: argparse.Namespace, *read: str | Path | None) -> list[str]:
+    """The recording options given when none of the inputs ``read`` (default: DATA and ``--test``)
+    is a recording."""
+    given_inputs = read or (getattr(args, "data", None), getattr(args, "test", None))
+    inputs = [p for p in given_inputs if p is not None]
     if any(is_recording(p) for p in inputs):
         return []
     given = [name for name, default in DEFAULTS.items() if getattr(args, name, default) != default]

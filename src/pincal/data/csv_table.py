@@ -65,6 +65,7 @@ def parse_header(path: str | Path, line: str) -> list[str]:
         header = [h.strip() for h in next(csv.reader([line]))]
     except csv.Error as exc:
         raise DataError(f"{path}: malformed header line ({exc})") from None
+    _check_separator(path, line, header)
     if len(header) > MAX_COLUMNS:
         raise DataError(
             f"{path}: the header has {len(header):,} columns, more than {MAX_COLUMNS:,}: is it a CSV?"
@@ -73,6 +74,43 @@ def parse_header(path: str | Path, line: str) -> list[str]:
     if dupes:
         raise DataError(f"{path}: duplicated column(s) {', '.join(dupes)}")
     return header
+
+
+#: Separators of tables that are not comma separated, named for the message.
+_OTHER_SEPARATORS = {";": "semicolons", "\t": "tabs", "|": "vertical bars", " ": "spaces"}
+
+
+def _check_separator(path: str | Path, line: str, header: list[str]) -> None:
+    """Refuse a header of one column that another separator splits into several: a table saved
+    with semicolons (a spreadsheet in a locale whose decimal mark is a comma), tabs or spaces
+    would otherwise be one column named after the whole line, and every joint "missing"."""
+    if len(header) != 1:
+        return
+    for sep, name in _OTHER_SEPARATORS.items():
+        names = [part.strip() for part in line.split(sep) if part.strip()]
+        if len(names) > 1:
+            raise DataError(
+                f"{path}: the header line is separated by {name} ({', '.join(names[:4])}"
+                f"{', ...' if len(names) > 4 else ''}), not commas: a measurement CSV is comma separated "
+                "with a point as decimal mark: save it so (or replace each separator with a comma and "
+                "each decimal comma with a point)"
+            )
+
+
+def other_separator(line: str) -> str | None:
+    """The name of the separator other than a comma that splits ``line`` into several cells, when
+    the line has no comma (``semicolons``, ``tabs``, ...), else None."""
+    if "," in line:
+        return None
+    return next((name for sep, name in _OTHER_SEPARATORS.items() if len(line.strip().split(sep)) > 1), None)
+
+
+def _separator_hint(line: str, n_fields: int) -> str:
+    """``: ... separated by NAME`` when another separator splits a data row into the header's fields."""
+    for sep, name in _OTHER_SEPARATORS.items():
+        if len(line.split(sep)) == n_fields:
+            return f": the row is separated by {name}, the header by commas: separate every line with commas"
+    return ""
 
 
 def read_columns(
@@ -157,7 +195,10 @@ def _parse_block(
     try:
         for r, row in enumerate(csv.reader(block), start=done + 1):
             if len(row) != n_fields:
-                raise DataError(f"{path}: data row {r} has {len(row)} fields, the header {n_fields}")
+                raise DataError(
+                    f"{path}: data row {r} has {len(row)} fields, the header {n_fields}"
+                    + _separator_hint(",".join(row), n_fields)
+                )
             try:
                 numbers = [float(row[c]) for c in cols]
             except ValueError:

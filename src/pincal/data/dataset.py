@@ -267,8 +267,35 @@ def unit_quaternions(path: str | Path, quats: np.ndarray) -> np.ndarray:
     return scaled / np.linalg.norm(scaled, axis=1, keepdims=True)
 
 
-def write_csv(path: str | Path, data: Dataset, units: str = "m") -> None:
-    """Write a dataset in the CSV format :func:`read_csv` reads (radians, ``units`` for x,y,z)."""
+def write_csv(
+    path: str | Path,
+    data: Dataset,
+    units: str = "m",
+    degrees: bool = False,
+    prismatic: Sequence[bool] | None = None,
+) -> None:
+    """Write a dataset in the CSV format :func:`read_csv` reads, with the same arguments: reading
+    the file back with them gives the dataset.
+
+    Args:
+        path: the CSV to write (atomically).
+        data: the poses (radians and metres, as a dataset holds them).
+        units: unit of ``x,y,z`` and of prismatic joint values (``m`` or ``mm``).
+        degrees: write revolute joint values in degrees (else radians).
+        prismatic: which joints are prismatic (written in ``units``, never in degrees); None:
+            every joint is revolute.
+
+    Raises:
+        DataError: an unknown unit, or ``prismatic`` not one flag per joint.
+    """
+    from pincal.units import joints_to_file
+
+    if units not in UNITS:
+        raise DataError(f"unknown unit {units!r}: use m or mm")
+    n = len(data.joint_names)
+    if prismatic is not None and len(prismatic) != n:
+        raise DataError(f"prismatic= has {len(prismatic)} flags for {n} joints: give one per joint")
+    q = joints_to_file(data.q, degrees, units, prismatic)
     scale = 1.0 / UNITS[units]
     fixed = data.labels is not None
     header = [*data.joint_names, *(("point",) if fixed else ("x", "y", "z"))]
@@ -277,7 +304,7 @@ def write_csv(path: str | Path, data: Dataset, units: str = "m") -> None:
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow(header)
     for i in range(len(data)):
-        row = [repr(float(v)) for v in data.q[i]]
+        row = [repr(float(v)) for v in q[i]]
         if data.labels is not None:
             row.append(data.point_names[data.labels[i]])
         else:

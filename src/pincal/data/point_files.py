@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from pincal import files
+from pincal.data.csv_table import other_separator
 from pincal.data.dataset import Dataset
 from pincal.errors import DataError
 from pincal.inputs import read_bytes
@@ -89,6 +90,13 @@ def _socket_rows(path: Path) -> np.ndarray:
             warnings.simplefilter("ignore", UserWarning)
             return np.loadtxt(io.StringIO(text), delimiter=",", ndmin=2, comments="#")
     except ValueError as exc:
+        first = next((line for line in text.splitlines() if files.is_content(line)), "")
+        named = other_separator(first)
+        if named is not None:
+            raise DataError(
+                f"{path}: the rows are separated by {named}, not commas: a socket file is comma separated "
+                "with a point as decimal mark: save it so"
+            ) from None
         raise DataError(f"{path}: not a table of numbers ({' '.join(str(exc).split())})") from None
 
 

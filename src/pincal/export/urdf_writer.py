@@ -17,9 +17,10 @@ Joint offsets are folded into ``<origin rpy>``, never into ``<calibration>``; ax
 For fixed-point data the tip is the ball the sockets held: its calibrated centre moves the origin
 of the fixed joint that carries the tip link (MUKCa's ``ball_joint``), and the sidecar's tool is
 then the identity.
-The instrument registration and the tool go to a JSON sidecar next to the URDF. Numbers are
-written with ``repr`` (shortest round-trip). The XML is parsed with entity resolution, DTD
-loading and network access off.
+The instrument registration and the tool go to a JSON sidecar next to the URDF. An origin's
+numbers are written near the input's text (:mod:`pincal.export.origins`: the rpy triple nearest
+the input's, no digits below 1e-12 m or rad); the sidecar's with ``repr`` (shortest
+round-trip). The XML is parsed with entity resolution, DTD loading and network access off.
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ from lxml import etree
 
 from pincal.errors import DataError, ImplausibleError, PincalError
 from pincal.export.effects_json import effects_json
+from pincal.export.origins import OriginChange, origin_attributes, origin_change
 from pincal.files import atomic_write_many
 from pincal.identify.calibration import Calibration
 from pincal.json_text import json_text
@@ -52,15 +54,27 @@ def _origin(element: etree._Element | None) -> pin.SE3:
     return pin.SE3(pin.rpy.rpyToMatrix(*rpy), np.array(xyz))
 
 
-def _format(values: np.ndarray) -> str:
-    return " ".join(repr(float(v) + 0.0) for v in values)
-
-
 def _set_origin(joint: etree._Element, placement: pin.SE3) -> None:
+    """Write ``placement`` as the joint's ``<origin>``, near its text as it was
+    (:func:`pincal.export.origins.origin_attributes`: the nearest rpy, no digits below 1e-12)."""
     origin = joint.find("origin")
     origin = etree.SubElement(joint, "origin") if origin is None else origin
-    origin.set("xyz", _format(placement.translation))
-    origin.set("rpy", _format(pin.rpy.matrixToRpy(placement.rotation)))
+    xyz, rpy = origin_attributes(placement, origin.get("xyz"), origin.get("rpy"))
+    origin.set("xyz", xyz)
+    origin.set("rpy", rpy)
+
+
+def origin_changes(cal: Calibration) -> list[OriginChange]:
+    """How each joint origin the corrected URDF rewrites moved and turned, as written (the chain's
+    joints, and for fixed-point data the joint that carries the ball)."""
+    before = {j.get("name"): j for j in _read(cal.robot).findall("joint")}
+    after = {j.get("name"): j for j in etree.fromstring(corrected_urdf(cal), _PARSER).findall("joint")}
+    ball = _ball_joint(_read(cal.robot), cal)
+    names = [*cal.robot.joint_names, *([ball.get("name")] if ball is not None else [])]
+    return [
+        origin_change(name, _origin(before[name].find("origin")), _origin(after[name].find("origin")))
+        for name in names
+    ]
 
 
 def _frames_at_zero(chain: Chain) -> list[pin.SE3]:
@@ -153,9 +167,12 @@ def moved_origins(source: bytes, moves: dict[str, pin.SE3]) -> bytes:
     return _prolog(source) + etree.tostring(root, encoding="UTF-8") + b"\n"
 
 
-def _as_written(origin: pin.SE3) -> pin.SE3:
-    """An origin as the URDF's text holds it (its numbers written and read back)."""
+def _as_written(origin: pin.SE3, given: etree._Element | None = None) -> pin.SE3:
+    """An origin as the URDF's text holds it (its numbers written and read back), written near
+    the input's ``<origin>`` ``given`` as the corrected URDF writes it."""
     element = etree.Element("joint")
+    if given is not None:
+        etree.SubElement(element, "origin", {k: v for k, v in given.attrib.items() if k in ("xyz", "rpy")})
     _set_origin(element, origin)
     return _origin(element.find("origin"))
 
@@ -167,7 +184,10 @@ def complete(cal: Calibration) -> dict[str, Any] | None:
     if cal.urdf_fit is None:
         return None
     written, full = corrected_origins(cal.written), corrected_origins(cal)
-    moves = {name: _as_written(written[name]).actInv(full[name]) for name in cal.robot.joint_names}
+    given = {j.get("name"): j.find("origin") for j in _read(cal.robot).findall("joint")}
+    moves = {
+        name: _as_written(written[name], given[name]).actInv(full[name]) for name in cal.robot.joint_names
+    }
     _, reg, tool = cal.split()
     if cal.measurement.measure.fixed_points and _ball_joint(_read(cal.robot), cal) is not None:
         ball = cal.written.split()[2].translation  # the written tip is the URDF alone's ball

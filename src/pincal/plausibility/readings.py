@@ -28,6 +28,10 @@ from pincal.plausibility.verdict import robot_size, score_mm
 IMPROVEMENT = 5.0
 #: ... and within this share of the robot's size (as :data:`pincal.plausibility.judge.BEFORE`).
 WITHIN = 0.1
+#: ... and within this share of how far the nominal tip moves over the poses so read: a reading
+#: that keeps the robot nearly still (another robot's radians read as degrees) fits any data about
+#: as well as a robot that does not move, which names no cause.
+MOVED = 0.1
 
 
 def model_mismatch(cal: Calibration, data: Dataset) -> float:
@@ -39,6 +43,15 @@ def model_mismatch(cal: Calibration, data: Dataset) -> float:
         urdf = forward(Chain.nominal(cal.robot), data.q).tip_translation
         off = np.linalg.norm(mine - urdf, axis=1).max(initial=0.0)
     return float(off) if np.isfinite(off) else float("inf")
+
+
+def tip_motion(cal: Calibration, data: Dataset) -> float:
+    """How far the nominal tip moves over the poses of ``data`` [m]: the RMS distance of its
+    positions from their mean."""
+    with np.errstate(all="ignore"):
+        tips = forward(Chain.nominal(cal.robot), data.q).tip_translation
+        size = float(np.sqrt(np.mean(np.sum((tips - tips.mean(axis=0)) ** 2, axis=1))))
+    return size if np.isfinite(size) else 0.0
 
 
 #: An other reading: cause key, fix, the data so read, and changed options of
@@ -61,7 +74,8 @@ def other_reading(
             continue
         score = score_mm(stats, weight)
         factor = current / max(score, 1e-12)
-        if factor >= IMPROVEMENT and score * 1e-3 <= WITHIN * robot_size(cal.robot):
+        near = score * 1e-3 <= min(WITHIN * robot_size(cal.robot), MOVED * tip_motion(cal, alt))
+        if factor >= IMPROVEMENT and near:
             found.append((factor, cause, fix, stats, up))
     if not found:
         return None

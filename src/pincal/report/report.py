@@ -13,6 +13,7 @@ import numpy as np
 import pinocchio as pin
 
 from pincal.data.dataset import Dataset
+from pincal.export.urdf_writer import origin_changes
 from pincal.identify.calibration import Calibration
 from pincal.identify.evaluation import (
     ErrorStats,
@@ -99,11 +100,15 @@ def report_dict(
     exported = outcome.exported if outcome is not None else None
 
     def pair(
-        before: ErrorStats | None, after: ErrorStats | None, urdf: ErrorStats | None, alone: ErrorStats | None
+        before: ErrorStats | None,
+        after: ErrorStats | None,
+        urdf: ErrorStats | None,
+        alone: ErrorStats | None,
+        rows: list[int] | None = None,
     ) -> Any:
         if before is None or after is None:
             return None
-        out = {"before": before.to_dict(), "after": after.to_dict()}
+        out: dict[str, Any] = {"before": before.to_dict(), "after": after.to_dict(), "rows": rows}
         if urdf is not None:
             out["urdf"] = urdf.to_dict()
         if alone is not None:
@@ -142,13 +147,24 @@ def report_dict(
         "exported_means": "the written URDF alone, with the sidecar's registration and tool (as a URDF "
         "consumer loads it); after: the URDF with the whole sidecar",
         "train": pair(
-            cal.train_before, cal.train_after, cal.train_urdf, exported.train if exported else None
+            cal.train_before,
+            cal.train_after,
+            cal.train_urdf,
+            exported.train if exported else None,
+            scored_rows(data, cal.excluded),
         ),
-        "test": pair(cal.test_before, cal.test_after, cal.test_urdf, exported.test if exported else None),
+        "test": pair(
+            cal.test_before,
+            cal.test_after,
+            cal.test_urdf,
+            exported.test if exported else None,
+            scored_rows(test),
+        ),
         "residual": None if outcome is None else outcome.residual.to_dict(),
         "balance": None if cal.balance is None else cal.balance.to_dict(),
         "solver": {"jacobian_evaluations": cal.n_evaluations, "message": cal.message},
         "excluded_poses": [{"row": row, "residual_mm": size} for row, size in cal.excluded],
+        "joint_changes": [change.to_dict() for change in origin_changes(cal)],
         "parameters": parameter_rows(cal),
         "placements": [p.to_dict() for p in found[0]],
         "warnings": report_warnings(cal, data, test, found),
@@ -159,6 +175,15 @@ def report_dict(
         "extension": extension_dict(cal, data),
         **extra,
     }
+
+
+def scored_rows(data: Dataset | None, excluded: tuple[tuple[int, float], ...] = ()) -> list[int] | None:
+    """The 1-based data rows (as ``excluded_poses`` numbers them) of the poses of ``data`` a set's
+    figures score: the rows the outlier screen left out are not among them (None without data)."""
+    if data is None:
+        return None
+    left_out = {int(row) for row, _ in excluded}
+    return [int(row) for row in data.row_numbers if int(row) not in left_out]
 
 
 def report_json(

@@ -17,6 +17,7 @@ import re
 import threading
 from collections.abc import Iterator, Mapping
 from pathlib import Path
+from typing import Any
 
 from pincal.errors import RobotError
 from pincal.inputs import note_input, read_bytes
@@ -31,6 +32,8 @@ _XACRO_LOCK = threading.Lock()  # xacro keeps its state in module globals
 XACRO_SECONDS = 30.0
 XACRO_MEMORY = 2_000_000_000
 _SEARCH_DEPTH = 3  # [folders] below each ROS_PACKAGE_PATH entry
+#: What may come before a robot file's ``<?xml`` and is dropped: white space and a byte-order mark.
+_LEADING = "\ufeff \t\r\n\f\v"
 
 
 class PackageNotFoundError(RobotError):
@@ -57,8 +60,14 @@ def is_xacro(path: str | Path) -> bool:
 
 
 def check_urdf_text(text: str, path: Path) -> str:
-    """``text`` (from ``path``), refused if it has a DOCTYPE with declarations (which could make an XML parser
-    read other files or expand entities without bound)."""
+    """``text`` (from ``path``) from its first markup on, refused if it has a DOCTYPE with declarations
+    (which could make an XML parser read other files or expand entities without bound).
+
+    Blank lines, spaces and a byte-order mark before ``<?xml`` are dropped: xacro output saved by
+    common tools starts so, and urdfdom reads it, but an XML parser refuses a declaration that is
+    not the first thing in the text.
+    """
+    text = text.lstrip(_LEADING)
     if "<!DOCTYPE" in text.upper() and declares_dtd(text):
         raise RobotError(
             f"URDF {path} has a DOCTYPE that declares entities or an external DTD, which could "
@@ -238,7 +247,7 @@ def _process(
     """xacro's processing of ``path``: the URDF text and the files it included."""
     import xacro
 
-    with _resolving(package_paths):
+    with _resolving(package_paths), _from_first_markup(xacro):
         xacro.all_includes = []
         try:
             doc = xacro.process_file(str(path), mappings=xacro_args, verbosity=0)
@@ -252,6 +261,26 @@ def _process(
         finally:
             xacro.init_stacks(None)
         return str(doc.toprettyxml(indent="  ")), list(xacro.all_includes)
+
+
+@contextlib.contextmanager
+def _from_first_markup(xacro: Any) -> Iterator[None]:
+    """xacro reading each file (the xacro and those it includes) from its first markup on, as
+    :func:`check_urdf_text` reads a URDF: a blank line before ``<?xml`` is no error."""
+    parse = xacro.parse
+
+    def lenient(inp: Any, filename: str | None = None) -> Any:
+        if inp is None and filename is not None:
+            with contextlib.suppress(OSError, UnicodeDecodeError):
+                text = Path(os.path.join(xacro.root_dir, filename)).read_text(encoding="utf-8")
+                inp = text.lstrip(_LEADING)
+        return parse(inp, filename)
+
+    xacro.parse = lenient
+    try:
+        yield
+    finally:
+        xacro.parse = parse
 
 
 _ARG = re.compile(r"<\s*[\w.-]+:arg\b[^>]*?\bname\s*=\s*[\"']([^\"']+)[\"']")

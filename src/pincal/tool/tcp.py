@@ -30,6 +30,9 @@ from pincal.units import joints_from_file
 
 #: Shortest accepted orientation move [m].
 MIN_MOVE = 0.005
+#: Least spread [m] of the flange positions: touching one point from other orientations moves
+#: the flange by about the tool's length, never by less than a millimetre.
+MIN_FLANGE_SPREAD = 1e-3
 #: Coefficient matrices worse conditioned than this get a warning.
 WARN_CONDITION = 30.0
 #: A pose is suspect when its leave-one-out distance exceeds this many times the others' scatter.
@@ -182,6 +185,25 @@ def tool_orientation(
 
 
 @limited
+def _check_flange_spread(positions: np.ndarray, scale: float) -> None:
+    """Refuse flange positions (n, 3) [data units, ``scale`` per metre] that spread less than
+    :data:`MIN_FLANGE_SPREAD`: no tool is calibrated by poses that hardly move (metres read as
+    millimetres give a tool of a fraction of a millimetre).
+
+    Raises:
+        DataError: the spread, with the unit that would make it plausible.
+    """
+    spread = float(np.sqrt(np.mean(np.sum((positions - positions.mean(axis=0)) ** 2, axis=1)))) / scale
+    if spread >= MIN_FLANGE_SPREAD:
+        return
+    metres = scale == 1000.0 and spread * 1e3 >= MIN_FLANGE_SPREAD
+    hint = "the x,y,z look like metres: drop units=mm" if metres else "check the unit of x,y,z (units=)"
+    raise DataError(
+        f"the flange positions spread {spread * 1e3:.3g} mm around their centre, but touching one point "
+        f"from different orientations moves the flange by about the tool's length: {hint}"
+    )
+
+
 def calibrate_tool(
     rotations: np.ndarray, positions: np.ndarray, orientation: str = "default", scale: float = 1.0
 ) -> ToolCalibration:
@@ -205,6 +227,7 @@ def calibrate_tool(
             f"orientation={orientation} needs at least {n_orient + 2} rows "
             f"(3 TCP poses, the last shared with the orientation rows), got {n_rows}"
         )
+    _check_flange_spread(positions, scale)
     tcp, delta, cond = tcp_position(rotations[:n_tcp], positions[:n_tcp])
     warnings: list[str] = []
     if cond > WARN_CONDITION:
@@ -274,6 +297,35 @@ def _leave_one_out(
     return out, (out > SUSPECT_RATIO * scatter) if n >= 5 else np.zeros(n, dtype=bool)
 
 
+#: The columns a flange-pose CSV is read by (``rename`` maps them to the file's).
+POSE_COLUMNS = ("x", "y", "z", "a", "b", "c", "qw", "qx", "qy", "qz")
+
+
+def _check_rename(path: str | Path, rename: dict[str, str] | None, robot: Robot | None) -> None:
+    """Refuse a ``rename`` entry that would do nothing: a name the poses are not read by, or a
+    file column the file does not have (it used to pass in silence, the column read by its own name).
+
+    Raises:
+        DataError: naming the entry, and what the file and the reader have.
+    """
+    if not rename:
+        return
+    known = robot.joint_names if robot is not None else POSE_COLUMNS
+    unknown = [f"{name}={column}" for name, column in rename.items() if name not in known]
+    if unknown:
+        raise DataError(
+            f"rename={','.join(unknown)}: the poses are read by the columns {', '.join(known)}: "
+            "name one of them before each '='"
+        )
+    header = csv_columns(path)
+    absent = [f"{name}={column}" for name, column in rename.items() if column not in header]
+    if absent:
+        raise DataError(
+            f"rename={','.join(absent)}: {path} has no such column (it has {', '.join(header)}): "
+            "name a column of the file after each '='"
+        )
+
+
 def read_flange_poses(
     path: str | Path,
     units: str = "m",
@@ -299,6 +351,7 @@ def read_flange_poses(
     """
     if units not in UNITS:
         raise DataError(f"unknown unit {units!r}: use m or mm")
+    _check_rename(path, rename, robot)
     if robot is not None:
         q = read_table(path, robot.joint_names, f"the joints {', '.join(robot.joint_names)}", rename)
         q = joints_from_file(q, degrees, units, robot.prismatic)
