@@ -37,7 +37,7 @@ import pincal
 from pincal.data.dataset import Dataset
 from pincal.data.point_files import read_socket_folder
 from pincal.identify.measurements import Problem
-from pincal.kinematics.effects import gravity_torques
+from pincal.kinematics.gravity import gravity_torques
 
 #: Joint-space error models: each maps (q, gravity torques) to regressors (N, n) per joint.
 Basis = Callable[[np.ndarray, np.ndarray], list[np.ndarray]]

@@ -16,7 +16,7 @@ Simulation (per robot, seed and effect):
 The effects are ``verdict_audit.make_effect``'s, evaluated on this truth: joint errors through the
 TrueRobot's forward kinematics at q + error (sin3, cubic, the pair), point displacements from its
 joint origins and tip (bending) or along the pose order (drift), gravity torques from
-:func:`pincal.kinematics.effects.gravity_torques` (the URDF's inertias). Each is scaled so that its RMS
+:func:`pincal.kinematics.gravity.gravity_torques` (the URDF's inertias). Each is scaled so that its RMS
 displacement of the measured point is M x the noise floor (sqrt(3) * sigma).
 
 The linearised references (``rigidR``, ``listR``) are ``verdict_audit``'s, computed on a Pinocchio
@@ -55,7 +55,7 @@ import pincal
 import pincal.kinematics.effects
 import pincal.simulation.truth
 from pincal.kinematics.chain import Frames, forward
-from pincal.kinematics.effects import gravity_torques
+from pincal.kinematics.gravity import gravity_torques
 from pincal.simulation.truth import TrueRobot, random_truth
 
 AGREE_M = 1e-9  # [m] the Pinocchio copy of the truth must give the TrueRobot's points within this
@@ -129,7 +129,7 @@ class OwnTruth(Truth):
 
     def gravity(self, q: np.ndarray) -> np.ndarray:
         """Gravity torques (N, n) [N·m] from the URDF's inertias
-        (:func:`pincal.kinematics.effects.gravity_torques`)."""
+        (:func:`pincal.kinematics.gravity.gravity_torques`)."""
         return gravity_torques(self._true.robot, q)
 
     def joint_origins(self, q: np.ndarray, joint_id: int) -> np.ndarray:

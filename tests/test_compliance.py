@@ -21,7 +21,9 @@ import pytest
 import pincal
 import pincal.kinematics.effects
 from pincal.auto.diagnose import diagnose
-from pincal.kinematics.effects import PLAUSIBLE_DEFLECTION, Extension, compliance_stiffness, gravity_torques
+from pincal.kinematics.effects import Extension
+from pincal.kinematics.gravity import gravity_torques
+from pincal.kinematics.stiffness import PLAUSIBLE_DEFLECTION, compliance_stiffness
 
 NOISE = 3e-5  # 1σ of each measured coordinate [m]
 N_POSES = 80
@@ -54,7 +56,7 @@ def elastic_data(robot: pincal.Robot, sag: float, seed: int = SEED) -> tuple[pin
     return pincal.Dataset(robot.joint_names, q_motor, points), float(k)
 
 
-def identified(robot: pincal.Robot, data: pincal.Dataset) -> pincal.kinematics.effects.Stiffness:
+def identified(robot: pincal.Robot, data: pincal.Dataset) -> pincal.kinematics.stiffness.Stiffness:
     """The compliance of ``JOINT`` identified with the geometry, read as a stiffness."""
     ext = Extension(robot, "joint_compliance", JOINT)
     cal = pincal.calibrate(robot, data, "placements", extension=ext)

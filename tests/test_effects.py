@@ -8,7 +8,7 @@ import pytest
 
 import pincal
 import pincal.kinematics.chain
-from pincal.kinematics.effects import Payload, gravity_torques
+from pincal.kinematics.gravity import Payload, gravity_torques
 
 
 @pytest.mark.parametrize("name", ["ur5", "panda", "mrres5"])

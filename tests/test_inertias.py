@@ -18,7 +18,7 @@ from pincal.auto.diagnose import diagnose
 from pincal.cli import main
 from pincal.cli.flags import as_flags
 from pincal.errors import RobotError
-from pincal.kinematics.effects import gravity_torques, massless
+from pincal.kinematics.gravity import gravity_torques, massless
 from pincal.robot.robots import bundled_urdf
 
 HINT = "the URDF has no masses (lend them with inertias=URDF)"  # the command: --inertias URDF

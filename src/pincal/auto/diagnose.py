@@ -13,7 +13,8 @@ from pincal.auto.diagnosis import (
 )
 from pincal.auto.pipeline import calibrate_unjudged
 from pincal.data.dataset import Dataset
-from pincal.kinematics.effects import Extension, Payload
+from pincal.kinematics.effects import Extension
+from pincal.kinematics.gravity import Payload
 from pincal.robot.robots import Robot
 
 

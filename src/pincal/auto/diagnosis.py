@@ -29,17 +29,9 @@ from pincal.auto.screening import Linearised, Screen
 from pincal.data.dataset import Dataset
 from pincal.identify.calibration import Calibration
 from pincal.identify.kfold import Fit, cross_validate_with
-from pincal.kinematics.effects import (
-    AnyEffect,
-    Extension,
-    Payload,
-    Stiffness,
-    candidates,
-    combined,
-    compliance_stiffness,
-    implausible,
-    massless,
-)
+from pincal.kinematics.effects import AnyEffect, Extension, candidates, combined
+from pincal.kinematics.gravity import Payload, massless
+from pincal.kinematics.stiffness import Stiffness, compliance_stiffness, implausible
 from pincal.robot.robots import Robot
 from pincal.threads import limited
 
@@ -134,7 +126,7 @@ class Diagnosis:
         folds: number of folds.
         q: the data's commanded configurations (N, n), to read a compliance as a stiffness.
         rejected: candidates that paid on held-out poses but whose identified value is
-            implausible for the effect named (:func:`pincal.kinematics.effects.implausible`), best first.
+            implausible for the effect named (:func:`pincal.kinematics.stiffness.implausible`), best first.
         given: the effects the baseline already held (a cause sought after others), or None.
     """
 

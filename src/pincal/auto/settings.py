@@ -21,7 +21,8 @@ from pincal.identify.guard import DEFAULT_PULL, Pull
 from pincal.identify.identifiability import RCOND
 from pincal.identify.measurements import ROTATION_WEIGHT
 from pincal.identify.solver import SETUP_KEYS
-from pincal.kinematics.effects import AnyEffect, Extension, Payload, combined
+from pincal.kinematics.effects import AnyEffect, Extension, combined
+from pincal.kinematics.gravity import Payload
 from pincal.options import LOSSES
 from pincal.robot.robots import Robot
 

@@ -1,6 +1,6 @@
 """``--payload`` and ``--inertias`` are only for the effects that carry a gravity torque.
 
-They change what a joint carries (:func:`pincal.kinematics.effects.gravity_torques`), which only
+They change what a joint carries (:func:`pincal.kinematics.gravity.gravity_torques`), which only
 the effects that follow it read (``joint_compliance``, ``backlash``). With ``--extend none`` or
 only other named effects they would change nothing: refused before the fit. With ``--extend
 auto`` they shape the candidates, but a model that keeps no gravity effect writes nothing of them:

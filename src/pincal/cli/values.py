@@ -9,7 +9,7 @@ from typing import Any
 
 
 def payload(text: str) -> Any:
-    from pincal.kinematics.effects import Payload  # here: --help does not load Pinocchio
+    from pincal.kinematics.gravity import Payload  # here: --help does not load Pinocchio
 
     return Payload.parse(text)
 

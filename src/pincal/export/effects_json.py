@@ -10,7 +10,8 @@ from typing import Any
 
 import numpy as np
 
-from pincal.kinematics.effects import AnyEffect, Extension, Payload, combined, split_params
+from pincal.kinematics.effects import AnyEffect, Extension, combined, split_params
+from pincal.kinematics.gravity import Payload
 from pincal.robot.robots import Robot
 
 #: What an entry says to a reader of the sidecar.

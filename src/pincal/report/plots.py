@@ -22,7 +22,7 @@ from pincal.auto.residual import ResidualVerdict
 from pincal.data.dataset import Dataset, atomic_write
 from pincal.errors import DataError
 from pincal.identify.calibration import Calibration
-from pincal.kinematics.effects import gravity_torques
+from pincal.kinematics.gravity import gravity_torques
 
 
 def _implied_joint_error(cal: Calibration, data: Dataset, joint: int) -> np.ndarray:

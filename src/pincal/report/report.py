@@ -23,8 +23,9 @@ from pincal.identify.evaluation import (
     placement_errors,
 )
 from pincal.json_text import json_text
-from pincal.kinematics.effects import Extension, compliance_stiffness, split_params
+from pincal.kinematics.effects import Extension, split_params
 from pincal.kinematics.models import PoeModel
+from pincal.kinematics.stiffness import compliance_stiffness
 from pincal.report.outcome import Outcome
 
 _TO_DISPLAY = {"m": (1e3, "mm"), "rad": (1e3, "mrad")}
