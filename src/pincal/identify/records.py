@@ -123,9 +123,12 @@ class Guard:
             (all the pose's residual rows: positions, weighted rotations, its pairs' distances).
         nominal_cv_rms_mm: the nominal model's (registration, tool, points fitted) [mm].
         z: mean gain in squared validation error over its standard error (large: reliable).
-        z_min: the gain above which it is reliable (:data:`pincal.identify.guard.Z_MIN`).
+        z_min: the gain above which it is reliable: :data:`pincal.identify.guard.Z_MIN`, or
+            after a forward selection the quantile of the null of selection + guard when higher
+            (:mod:`pincal.identify.guard_null`).
         kept_fit: the fit is exported (reliably better, or forced).
         forced: ``force_fit`` was asked for.
+        threshold_from: how ``z_min`` was set, in words.
     """
 
     fit_cv_rms_mm: float
@@ -134,6 +137,7 @@ class Guard:
     z_min: float
     kept_fit: bool
     forced: bool = False
+    threshold_from: str = "fixed (no choice was made on these poses before the guard)"
 
     @property
     def reliable(self) -> bool:
@@ -170,5 +174,6 @@ class Guard:
             "reliable": self.reliable,
             "exported": "fit" if self.kept_fit else "nominal",
             "forced": self.forced,
+            "z_min_from": self.threshold_from,
             "by": "linearised leave-one-pose-out cross-validation on the fitted poses",
         }
