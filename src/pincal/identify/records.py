@@ -92,11 +92,20 @@ class PriorChoice:
     chosen_by: str
     log_evidence: tuple[tuple[float, float], ...] = ()
 
+    @property
+    def at_edge(self) -> bool:
+        """The evidence's optimum is the smallest or largest weight tried: the best weight may lie
+        beyond the grid (and the data hardly tell what the corrections are: under the null,
+        distance data pick the top)."""
+        tried = [w for w, _ in self.log_evidence]
+        return self.chosen_by == "evidence" and bool(tried) and self.weight in (min(tried), max(tried))
+
     def to_dict(self) -> dict[str, Any]:
         """The report's ``prior`` object."""
         return {
             "weight": self.weight,
             "chosen_by": self.chosen_by,
+            "at_grid_edge": self.at_edge,
             "means": "weight of the rows holding each geometric correction near the URDF, per "
             "natural unit (0.1 m of correction weighs as a residual of 0.1 m x weight)",
             "log_evidence": [{"weight": w, "log_evidence": e} for w, e in self.log_evidence],
@@ -107,10 +116,11 @@ class PriorChoice:
         how = self.chosen_by
         if how == "evidence":
             how = "chosen by maximum evidence over the fitted poses"
+        edge = "; at the edge of the weights tried: the optimum may lie beyond them" if self.at_edge else ""
         return (
             "pull toward the URDF (what the data hardly see stays near it): a correction of 1 mm "
             f"(a rotation: 1 mm across the workspace) weighs as a residual of {self.weight:.3g} mm "
-            f"(weight {self.weight:.3g}, {how})"
+            f"(weight {self.weight:.3g}, {how}{edge})"
         )
 
 
