@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 import time
 from dataclasses import asdict, dataclass, replace
@@ -158,6 +159,27 @@ HEADER = (
 )
 
 
+LINE = re.compile(r"^(\w+) (\w+) (\d+) (\d+): z (\S+) > (\S+)\? ratio (\S+) \((\S+) s\)$")
+
+
+def load(path: Path) -> list[Session]:
+    """Sessions saved by ``--json``, or read back from the lines a run printed (``.log``: the
+    number of parameters is not printed, and reads 0)."""
+    if path.suffix != ".log":
+        return [Session(**item) for item in json.loads(path.read_text())]
+    out = []
+    for line in path.read_text().splitlines():
+        found = LINE.match(line.strip())
+        if found:
+            sim, truth, n, seed, z, z_min, ratio, seconds = found.groups()
+            out.append(
+                Session(
+                    sim, truth, int(n), int(seed), float(z), float(z_min), float(ratio), 0, float(seconds)
+                )
+            )
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the sessions, print the table, write it (``--markdown``) and the sessions (``--json``)."""
     parser = argparse.ArgumentParser(
@@ -171,10 +193,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", type=Path)
     parser.add_argument("--markdown", type=Path)
     parser.add_argument(
-        "--load", type=Path, nargs="*", default=[], help="sessions saved by --json, not run again"
+        "--load", type=Path, nargs="*", default=[], help="sessions saved by --json, or the lines a run printed (.log)"
     )
     args = parser.parse_args(argv)
-    sessions = [Session(**item) for path in args.load for item in json.loads(path.read_text())]
+    sessions = [s for path in args.load for s in load(path)]
     sims = Simulators()
     for simulator in args.simulators if args.sessions else ():
         for truth in args.truths:
