@@ -193,7 +193,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", type=Path)
     parser.add_argument("--markdown", type=Path)
     parser.add_argument(
-        "--load", type=Path, nargs="*", default=[], help="sessions saved by --json, or the lines a run printed (.log)"
+        "--load", type=Path, nargs="*", default=[], help="saved: --json files or printed lines (.log)"
     )
     args = parser.parse_args(argv)
     sessions = [s for path in args.load for s in load(path)]
