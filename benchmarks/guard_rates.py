@@ -192,6 +192,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--simulators", nargs="+", default=["own", "audit"])
     parser.add_argument("--json", type=Path)
     parser.add_argument("--markdown", type=Path)
+    parser.add_argument("--runs", default="", help="how the --load sessions were run, for the page")
     parser.add_argument(
         "--load", type=Path, nargs="*", default=[], help="saved: --json files or printed lines (.log)"
     )
@@ -215,8 +216,12 @@ def main(argv: list[str] | None = None) -> int:
     if args.json:
         args.json.write_text(json.dumps([asdict(s) for s in sessions], indent=1))
     if args.markdown:
-        line = command_line("guard_rates.py", sys.argv[1:] if argv is None else argv, {})
-        write_page(args.markdown, line, [text])
+        given = sys.argv[1:] if argv is None else argv
+        names = {str(path): path.name for path in args.load}
+        line = command_line(
+            "guard_rates.py", [a for a in given if not a.startswith("--runs") and a != args.runs], names
+        )
+        write_page(args.markdown, line, [args.runs, "", text] if args.runs else [text])
     return 0
 
 
