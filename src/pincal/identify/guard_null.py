@@ -1,4 +1,4 @@
-"""The guard's threshold after a forward selection: the null of the whole procedure (issue 40).
+"""The guard's threshold after a forward selection: the null of the whole procedure.
 
 Forward selection (:mod:`pincal.identify.forward_selection`) picks the parameters whose linearised
 leave-one-pose-out error is lowest; the guard (:func:`pincal.identify.guard.judge`) then asks
