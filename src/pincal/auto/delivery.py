@@ -77,7 +77,9 @@ def settled(cal: Calibration, data: Dataset, test: Dataset | None) -> Calibratio
     ext = on_robot(cal.extension, corrected_robot(cal))
     problem = Problem(cal.model, cal.measurement, data, ext)
     setup = Setup(problem, natural_scale(problem), cal.urdf_measurement.tool)
-    result = OptimizeResult(njev=cal.n_evaluations, nfev=cal.n_evaluations, message=cal.message)
+    result = OptimizeResult(
+        njev=cal.n_evaluations, nfev=cal.n_evaluations, message=cal.message, success=cal.converged
+    )
     settled_cal = assess(
         setup, cal.theta, register(setup, with_extension=False), cal.identifiability, result, test
     )

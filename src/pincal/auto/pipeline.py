@@ -161,6 +161,8 @@ def _chosen(
             setup = set_up(robot, data, model, measure, extension=choice.extension, **opts.setup())
             nominal, checked, every = None, False, None
         opts, wanted = replace(opts, partial=opts.partial or checked), choice.params
+        if choice.selection is not None:  # the guard's null repeats the selection
+            opts = replace(opts, pull=replace(opts.pull, selected=True))
     return setup, choice, wanted, {"nominal": nominal, "every": every}, opts
 
 

@@ -5,13 +5,17 @@ The verdict is decided on the fitted poses, so that a user with one data set get
 1. The final model's K-fold cross-validated errors, linearised at its fit (as
    :mod:`pincal.auto.screening`): each fold's poses predicted by the fit of the other folds.
 2. The instrument's noise ``σ`` (RMS per axis): given (``noise_mm``), else estimated from
-   repeated poses (the same commanded joints measured more than once), else unknown.
+   repeated poses (the same commanded joints measured more than once, at least
+   :data:`MIN_NOISE_DOF` degrees of freedom), else unknown.
 3. With ``σ``: the same cross-validation run on pure noise of that size (Monte Carlo through the
    same linear operator, so the loss of degrees of freedom to the fit and the registration is
-   counted exactly) gives what the errors would be if the model were right. The observed mean
-   square above the 99th percentile of those draws, by more than (:data:`MIN_SHARE` × the noise
-   floor)², is ``unexplained``; what it exceeds the draws' mean by is the structure's mean square.
-   Otherwise ``explained``.
+   counted exactly) gives what the errors would be if the model were right. An estimated ``σ`` is
+   itself uncertain: each draw's ``σ²`` is drawn from its posterior ``ν s² / χ²_ν`` (``ν`` its
+   degrees of freedom), so that a few repeated poses do not pass for an exact noise figure. For
+   pose data, the orientation rows get noise too, of the size the fit's own orientation residuals
+   give. The observed mean square above the 99th percentile of those draws, by more than
+   (:data:`MIN_SHARE` × the noise floor)², is ``unexplained``; what it exceeds the draws' mean by
+   is the structure's mean square. Otherwise ``explained``.
 4. Without ``σ``: a model-free test of whether the held-out errors still depend on the joint
    angles (the K nearest poses in joint space predict a pose's error better than a random
    permutation of the errors does, p < 0.01): ``unexplained`` if they do, the noise then
@@ -43,6 +47,15 @@ DRAWS = 200
 NEIGHBOURS, PERMUTATIONS = 5, 200
 #: Joint values closer than this [rad or m] are the same commanded pose.
 SAME_POSE = 1e-6
+#: Repeated poses giving fewer degrees of freedom than this give no noise figure (the verdict is
+#: then the model-free test's: ``undetermined`` unless the errors depend on the joints).
+MIN_NOISE_DOF = 9
+#: What ``unexplained_mm`` is, for the report.
+UNEXPLAINED_MEANS = (
+    "RMS over the fitted poses of the norm of the 3-D error above the noise (per pair, of the "
+    "distance error), from the cross-validated errors [mm]; noise_mm is per axis: noise alone "
+    "gives a norm of about sqrt(3) x noise_mm"
+)
 
 
 @dataclass(frozen=True)
@@ -82,6 +95,7 @@ class ResidualVerdict:
             "noise_mm": finite(self.noise_mm),
             "noise_source": self.noise_source,
             "unexplained_mm": float(self.unexplained_mm),
+            "unexplained_means": UNEXPLAINED_MEANS,
             "verdict": self.verdict,
             "cv_rms_mm": finite(self.cv_rms_mm),
             "noise_floor_mm": finite(self.floor_mm),
@@ -114,6 +128,7 @@ class HeldOut:
         self.fit = Delivered(self.problem, cal.theta, cal.identifiability.identifiable, weight)
         self.residuals, self.alone_residuals = self.fit.full, self.fit.alone
         poses = self.kind.owners(self.problem)
+        self.rotation_noise = _rotation_noise(self.problem, self.residuals, cal)
         self.parts: list[np.ndarray] = [
             np.asarray(np.isin(poses, held).any(axis=1))
             for held in fold_indices(len(data), min(folds, len(data)), seed)
@@ -135,7 +150,24 @@ class HeldOut:
         """Residual rows (rows, draws) [m] that noise of ``sigma`` per axis on each measured
         point makes."""
         noise = rng.normal(scale=sigma, size=(len(self.problem.data), 3, draws))
-        return self.kind.noise_rows(self.problem, len(self.residuals), noise)
+        rows = self.kind.noise_rows(self.problem, len(self.residuals), noise)
+        if self.rotation_noise > 0:  # pose data: the orientation rows are noisy too
+            n, width = len(self.problem.data), self.kind.width
+            turned = rng.normal(scale=self.rotation_noise, size=(n, width - 3, draws))
+            rows[: n * width].reshape(n, width, draws)[:, 3:, :] += turned
+        return rows
+
+
+def _rotation_noise(problem: Any, residuals: np.ndarray, cal: Calibration) -> float:
+    """RMS per orientation row [m: radians times the rotation weight] of the fit's orientation
+    residuals, counted for the degrees of freedom the fit took; 0 without orientation rows."""
+    kind = cal.measurement.measure
+    if not kind.orientation:
+        return 0.0
+    n, width = len(problem.data), kind.width
+    turned = residuals[: n * width].reshape(n, width)[:, 3:]
+    kept = 1.0 - int(cal.identifiability.identifiable.sum()) / max(len(residuals), 1)
+    return float(np.sqrt(np.mean(turned**2) / max(kept, 0.1)))
 
 
 def mean_square(per_pose: np.ndarray) -> np.ndarray:
@@ -145,33 +177,47 @@ def mean_square(per_pose: np.ndarray) -> np.ndarray:
 
 def repeated_noise(data: Dataset) -> float | None:
     """Noise per axis [m] from poses measured more than once (None: no repeated pose)."""
+    found = noise_estimate(data)
+    return None if found is None else found[0]
+
+
+def noise_estimate(data: Dataset) -> tuple[float, int] | None:
+    """Noise per axis [m] from poses measured more than once and its degrees of freedom (one per
+    coordinate of each measurement beyond a pose's first); None: fewer than :data:`MIN_NOISE_DOF`."""
     if data.points is None or len(data) < 2:
         return None
     key = np.round(data.q / SAME_POSE).astype(np.int64)
     _, group, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
     group = group.reshape(-1)
     dof = int(np.sum(counts - 1))
-    if dof < 3:
+    if 3 * dof < MIN_NOISE_DOF:
         return None
     means = np.zeros((len(counts), 3))
     np.add.at(means, group, data.points)
     means /= counts[:, None]
     scatter = float(np.sum((data.points - means[group]) ** 2))
-    return float(np.sqrt(scatter / (3 * dof)))
+    return float(np.sqrt(scatter / (3 * dof))), 3 * dof
 
 
-def _with_noise(held: HeldOut, observed: np.ndarray, sigma: float, source: str, seed: int) -> ResidualVerdict:
-    """The verdict against noise ``sigma`` per axis [m]."""
+def _with_noise(
+    held: HeldOut, observed: np.ndarray, sigma: float, source: str, seed: int, dof: int | None = None
+) -> ResidualVerdict:
+    """The verdict against noise ``sigma`` per axis [m]; estimated with ``dof`` degrees of
+    freedom, each draw's noise from its posterior (``σ² = dof s² / χ²_dof``)."""
     rng = np.random.default_rng(seed)
-    null = mean_square(held.per_pose(held.errors(held.noise_rows(sigma, DRAWS, rng))))
+    rows = held.noise_rows(sigma, DRAWS, rng)
+    if dof is not None:
+        rows = rows * np.sqrt(dof / rng.chisquare(dof, DRAWS))
+    null = mean_square(held.per_pose(held.errors(rows)))
     ms = float(mean_square(observed[:, :, None])[0])
     excess = ms - float(np.mean(null))
     floor = float(np.sqrt(np.mean(null)))
     structured = ms > float(np.quantile(null, 0.99)) and excess > (MIN_SHARE * floor) ** 2
     verdict = "unexplained" if structured else "explained"
+    drawn = "" if dof is None else f", its uncertainty from {dof} degrees of freedom drawn in each"
     how = (
         f"cross-validated RMS {np.sqrt(ms) * 1e3:.3g} mm against {floor * 1e3:.3g} mm for noise "
-        f"alone ({source} noise, {DRAWS} draws through the same cross-validation)"
+        f"alone ({source} noise, {DRAWS} draws through the same cross-validation{drawn})"
     )
     unexplained = float(np.sqrt(excess)) * 1e3 if structured else 0.0
     rms_mm = np.sqrt(ms) * 1e3
@@ -258,9 +304,9 @@ def _decided(
     observed = held.per_pose(rows)[:, :, 0]
     if noise_mm is not None:
         return _with_noise(held, observed, noise_mm * 1e-3, "given", seed)
-    repeated = repeated_noise(data) if not held.kind.fixed_points else None
+    repeated = noise_estimate(data) if not held.kind.fixed_points else None
     if repeated is not None:
-        return _with_noise(held, observed, repeated, "estimated", seed)
+        return _with_noise(held, observed, repeated[0], "estimated", seed, repeated[1])
     rms = float(np.sqrt(mean_square(observed[:, :, None])[0]))
     if held.kind.by_pairs or len(data) < 3 * NEIGHBOURS:
         why = "no noise figure, no repeated pose, and no per-pose errors to test"

@@ -41,6 +41,8 @@ class Calibration:
         n_poses: number of fitted poses.
         n_evaluations: Jacobian evaluations of the solver.
         message: the solver's termination message.
+        converged: the solver met a tolerance; False when it stopped at its evaluation limit
+            (the fit is then not a minimum: the report warns).
         excluded: outlier poses left out of the fit, as (row number, residual [mm]) pairs.
         choice: how the parameters and the extension were chosen (``params="auto"`` or
             ``extension="auto"``), else None.
@@ -84,6 +86,7 @@ class Calibration:
     guard: Guard | None = None
     plausibility: Judgement | None = None
     urdf_fit: Calibration | None = None
+    converged: bool = True
 
     @property
     def written(self) -> Calibration:

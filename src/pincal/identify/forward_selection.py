@@ -168,6 +168,12 @@ class _LeaveOut:
             sse += np.where(lost, np.inf, np.sum(loo**2, axis=1)).sum(axis=0)
         return sse, np.sum(e**2, axis=0)
 
+    def copy(self) -> _LeaveOut:
+        """An independent copy (a walk adds columns to its own)."""
+        out = object.__new__(_LeaveOut)
+        out.blocks = list(self.blocks)
+        return out
+
     def add(self, col: np.ndarray) -> None:
         """Take the unit column ``col`` into the basis."""
         for k, (rows, a_inv, singular) in enumerate(self.blocks):
@@ -177,56 +183,110 @@ class _LeaveOut:
             self.blocks[k] = (rows, a_inv, singular | lost)
 
 
-def selection_path(
-    setup: Setup, theta: np.ndarray, folds: int | None = None, seed: int = 0, max_params: int | None = None
-) -> tuple[list[SelectionStep], bool]:
-    """The forward-selection path on the problem linearised at ``theta`` (the fit of the
-    extension, registration and tool alone), and whether it went on until no candidate added rank.
+@dataclass(frozen=True, eq=False)
+class Design:
+    """A problem linearised for the forward selection, the same for every residual walked on it.
+
+    Attributes:
+        jac: Jacobian in natural units, the blind directions of fixed points removed (m, P).
+        basis: orthonormal basis of the always-fitted columns (registration, tool, extension) (m, r).
+        tol: a column shorter than this (after projection) adds no rank.
+        groups: the residual rows of each held-out group.
+        candidates: indices of the model parameters that may be added.
+        names: every unknown's name.
+        n_units: what a cross-validated sum of squares is averaged over (poses, or pairs held out).
+        n_fit_units: what an in-sample sum of squares is averaged over.
+        room: the most columns a fit without any one group can hold.
+        leave_out: ``(I - H_gg)⁻¹`` of every group for ``basis`` (copied by each walk).
     """
+
+    jac: np.ndarray
+    basis: np.ndarray
+    tol: float
+    groups: list[np.ndarray]
+    candidates: list[int]
+    names: tuple[str, ...]
+    n_units: int
+    n_fit_units: int
+    room: int
+    leave_out: _LeaveOut
+
+    def project(self, res: np.ndarray) -> np.ndarray:
+        """``res`` without its part in the always-fitted columns: the residual of their fit."""
+        return res - self.basis @ (self.basis.T @ res)
+
+
+def design(setup: Setup, theta: np.ndarray, folds: int | None = None, seed: int = 0) -> Design:
+    """The problem linearised at ``theta`` (the fit of the extension, registration and tool
+    alone) for :func:`walk`."""
     problem, data = setup.problem, setup.data
-    res, jac = setup.linearised(theta)
+    jac = setup.linearised(theta)[1]
     fitted = np.array([name not in setup.model.held for name in problem.names])
     jac = blind_jacobian(problem, theta, jac, fitted, setup.scale)[0] * setup.scale
     n_geo = setup.model.n_params
     tol = RCOND * float(np.max(np.linalg.norm(jac, axis=0)))
     left, sv, _ = np.linalg.svd(jac[:, n_geo:], full_matrices=False)  # always fitted
     q = left[:, sv > tol]
-    res = res - q @ (q.T @ res)
     groups = held_out_rows(problem, folds, seed)
-    leave_out = _LeaveOut(q, groups)
     pairs = problem.measurement.measure.by_pairs
-    n_units, n_fit_units = (sum(len(g) for g in groups), len(res)) if pairs else (len(data), len(data))
+    n_units, n_fit = (sum(len(g) for g in groups), len(jac)) if pairs else (len(data), len(data))
+    candidates = [k for k in range(n_geo) if problem.names[k] not in setup.model.held]
+    room = len(jac) - max(len(g) for g in groups) - 1
+    leave_out = _LeaveOut(q, groups)
+    return Design(jac, q, tol, groups, candidates, tuple(problem.names), n_units, n_fit, room, leave_out)
+
+
+def selection_path(
+    setup: Setup, theta: np.ndarray, folds: int | None = None, seed: int = 0, max_params: int | None = None
+) -> tuple[list[SelectionStep], bool]:
+    """The forward-selection path on the problem linearised at ``theta`` (the fit of the
+    extension, registration and tool alone), and whether it went on until no candidate added rank.
+    """
+    plan = design(setup, theta, folds, seed)
+    path, complete, _ = walk(plan, setup.linearised(theta)[0], max_params)
+    return path, complete
+
+
+def walk(
+    plan: Design, res: np.ndarray, max_params: int | None = None
+) -> tuple[list[SelectionStep], bool, list[int]]:
+    """The forward-selection path of the residual ``res`` [m] on ``plan``, whether it went on until
+    no candidate added rank, and the unknowns added (indices, in order)."""
+    q, res = plan.basis, plan.project(res)
+    leave_out = plan.leave_out.copy()
 
     def rms(sse: np.ndarray, units: float) -> np.ndarray:
         return np.sqrt(sse / units) * 1e3
 
     cv0, fit0 = leave_out.scores(res, np.zeros((len(res), 1)))
-    path = [SelectionStep(None, float(rms(cv0, n_units)[0]), float(rms(fit0, n_fit_units)[0]))]
-    candidates = [k for k in range(n_geo) if problem.names[k] not in setup.model.held]
-    room = len(res) - max(len(g) for g in groups) - 1  # columns a fit without any group can hold
+    path = [SelectionStep(None, float(rms(cv0, plan.n_units)[0]), float(rms(fit0, plan.n_fit_units)[0]))]
+    candidates, added = list(plan.candidates), list[int]()
     while candidates:
-        if (max_params is not None and len(path) > max_params) or q.shape[1] + 1 > room:
-            return path, False
-        cols = jac[:, candidates]
+        if (max_params is not None and len(path) > max_params) or q.shape[1] + 1 > plan.room:
+            return path, False, added
+        cols = plan.jac[:, candidates]
         for _ in range(2):  # Gram-Schmidt twice keeps the basis orthonormal
             cols = cols - q @ (q.T @ cols)
         norms = np.linalg.norm(cols, axis=0)
-        valid = norms > tol
+        valid = norms > plan.tol
         if not valid.any():
             break
         u = np.where(valid, cols / np.where(valid, norms, 1.0), 0.0)
         sse, fit = leave_out.scores(res, u)
-        cv = np.where(valid, rms(sse, n_units), np.inf)
+        cv = np.where(valid, rms(sse, plan.n_units), np.inf)
         best = int(np.argmin(cv))
         if not np.isfinite(cv[best]):
             break
-        name = problem.names[candidates[best]]
-        path.append(SelectionStep(name, float(cv[best]), float(rms(fit[best : best + 1], n_fit_units)[0])))
+        added.append(candidates[best])
+        name = plan.names[candidates[best]]
+        path.append(
+            SelectionStep(name, float(cv[best]), float(rms(fit[best : best + 1], plan.n_fit_units)[0]))
+        )
         q = np.column_stack([q, u[:, best]])
         leave_out.add(u[:, best])
         res = res - u[:, best] * (u[:, best] @ res)
         candidates = [c for k, c in enumerate(candidates) if k != best and valid[k]]
-    return path, True
+    return path, True, added
 
 
 def choose_step(path: list[SelectionStep], complete: bool, min_gain: float, keep_all: float) -> int:

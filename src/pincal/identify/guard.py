@@ -24,6 +24,7 @@ import numpy as np
 from pincal.data.dataset import Dataset
 from pincal.identify.calibration import Calibration
 from pincal.identify.folds import held_out_rows
+from pincal.identify.guard_null import NULL_MAX_POSES, null_threshold
 from pincal.identify.identifiability import Identifiability
 from pincal.identify.lm import OptimizeResult
 from pincal.identify.measurements import Problem
@@ -53,7 +54,12 @@ def loo_squared_errors(setup: Setup, theta: np.ndarray, free: np.ndarray) -> np.
 
 
 def judge(
-    setup: Setup, theta: np.ndarray, nominal: np.ndarray, free: np.ndarray, forced: bool = False
+    setup: Setup,
+    theta: np.ndarray,
+    nominal: np.ndarray,
+    free: np.ndarray,
+    forced: bool = False,
+    selected: bool = False,
 ) -> Guard:
     """Compare the fit ``theta`` (unknowns ``free``) with the registration-only θ ``nominal``.
 
@@ -63,7 +69,10 @@ def judge(
         nominal: the nominal model with its registration, tool and points fitted.
         free: mask of the fitted unknowns.
         forced: export the fit whatever the verdict (``--force-fit``).
+        selected: the parameters were chosen by forward selection on these poses: the threshold
+            is the null of selection + guard (:func:`threshold`).
     """
+    z_min, how = threshold(setup, nominal, selected)
     setup = judged_on(setup)
     n_model = setup.problem.n_model
     registration = free & (np.arange(len(free)) >= n_model)
@@ -72,8 +81,27 @@ def judge(
     gain = base - fit
     stderr = float(np.std(gain, ddof=1) / np.sqrt(len(gain))) if len(gain) > 1 else 0.0
     z = float(np.mean(gain) / stderr) if stderr > 0 else 0.0  # no spread: nothing but the registration moved
-    reliable = z > Z_MIN
-    return Guard(_rms_mm(fit), _rms_mm(base), z, Z_MIN, reliable or forced, forced)
+    reliable = z > z_min
+    return Guard(_rms_mm(fit), _rms_mm(base), z, z_min, reliable or forced, forced, how)
+
+
+def threshold(setup: Setup, nominal: np.ndarray, selected: bool) -> tuple[float, str]:
+    """The guard's threshold [standard errors] and how it was set: :data:`Z_MIN`, or after a
+    forward selection the null quantile of selection + guard when higher
+    (:func:`pincal.identify.guard_null.null_threshold`)."""
+    if not selected:
+        return Z_MIN, Guard.threshold_from
+    null = null_threshold(setup, nominal)
+    if null is None:
+        return Z_MIN, (
+            f"fixed: the parameters were selected, but above {NULL_MAX_POSES} poses no null is drawn"
+        )
+    said = (
+        f"the {null.rank}. largest ({null.z:.2f}) of the guard's z after the same forward selection on "
+        f"{null.draws} draws of pure noise ({null.noise_mm:.3f} mm per row), at least {Z_MIN:g}: "
+        f"false export on pure noise {null.alpha:.1%}"
+    )
+    return max(Z_MIN, null.z), said
 
 
 #: Above this many poses (position or pose data), the guard judges a random subset of them
@@ -114,10 +142,14 @@ class Pull:
             weight].
         force_fit: export the fit even when the guard finds it not reliably better than the
             nominal model on its own validation (:func:`judge`).
+        selected: the parameters were chosen by forward selection on the fitted poses (set by
+            :func:`pincal.calibrate` for ``params="auto"``): the guard's threshold is then the null
+            of selection + guard (:mod:`pincal.identify.guard_null`).
     """
 
     weight: float | str = "auto"
     force_fit: bool = False
+    selected: bool = False
 
 
 #: ``pincal calibrate``'s default: the weight chosen from the data, the guard on.
@@ -186,7 +218,7 @@ def protect(
     choice, chosen, theta, result = choose_weight(setup, base, free, pull.weight, loss)
     if loss != "linear":
         theta, result = solve(chosen, base, free, loss, f_scale)
-    verdict = judge(chosen, theta, nominal, free, pull.force_fit)
+    verdict = judge(chosen, theta, nominal, free, pull.force_fit, pull.selected)
     kept = theta if verdict.kept_fit else nominal
     screening = (setup, base) if choice.chosen_by == "evidence" else (chosen, theta)
     return Protected(chosen, kept, nominal, ident, result, choice, verdict, screening)

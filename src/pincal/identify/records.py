@@ -92,11 +92,20 @@ class PriorChoice:
     chosen_by: str
     log_evidence: tuple[tuple[float, float], ...] = ()
 
+    @property
+    def at_edge(self) -> bool:
+        """The evidence's optimum is the smallest or largest weight tried: the best weight may lie
+        beyond the grid (and the data hardly tell what the corrections are: under the null,
+        distance data pick the top)."""
+        tried = [w for w, _ in self.log_evidence]
+        return self.chosen_by == "evidence" and bool(tried) and self.weight in (min(tried), max(tried))
+
     def to_dict(self) -> dict[str, Any]:
         """The report's ``prior`` object."""
         return {
             "weight": self.weight,
             "chosen_by": self.chosen_by,
+            "at_grid_edge": self.at_edge,
             "means": "weight of the rows holding each geometric correction near the URDF, per "
             "natural unit (0.1 m of correction weighs as a residual of 0.1 m x weight)",
             "log_evidence": [{"weight": w, "log_evidence": e} for w, e in self.log_evidence],
@@ -107,10 +116,11 @@ class PriorChoice:
         how = self.chosen_by
         if how == "evidence":
             how = "chosen by maximum evidence over the fitted poses"
+        edge = "; at the edge of the weights tried: the optimum may lie beyond them" if self.at_edge else ""
         return (
             "pull toward the URDF (what the data hardly see stays near it): a correction of 1 mm "
             f"(a rotation: 1 mm across the workspace) weighs as a residual of {self.weight:.3g} mm "
-            f"(weight {self.weight:.3g}, {how})"
+            f"(weight {self.weight:.3g}, {how}{edge})"
         )
 
 
@@ -123,9 +133,12 @@ class Guard:
             (all the pose's residual rows: positions, weighted rotations, its pairs' distances).
         nominal_cv_rms_mm: the nominal model's (registration, tool, points fitted) [mm].
         z: mean gain in squared validation error over its standard error (large: reliable).
-        z_min: the gain above which it is reliable (:data:`pincal.identify.guard.Z_MIN`).
+        z_min: the gain above which it is reliable: :data:`pincal.identify.guard.Z_MIN`, or
+            after a forward selection the quantile of the null of selection + guard when higher
+            (:mod:`pincal.identify.guard_null`).
         kept_fit: the fit is exported (reliably better, or forced).
         forced: ``force_fit`` was asked for.
+        threshold_from: how ``z_min`` was set, in words.
     """
 
     fit_cv_rms_mm: float
@@ -134,6 +147,7 @@ class Guard:
     z_min: float
     kept_fit: bool
     forced: bool = False
+    threshold_from: str = "fixed (no choice was made on these poses before the guard)"
 
     @property
     def reliable(self) -> bool:
@@ -170,5 +184,6 @@ class Guard:
             "reliable": self.reliable,
             "exported": "fit" if self.kept_fit else "nominal",
             "forced": self.forced,
+            "z_min_from": self.threshold_from,
             "by": "linearised leave-one-pose-out cross-validation on the fitted poses",
         }

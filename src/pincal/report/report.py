@@ -22,6 +22,7 @@ from pincal.identify.evaluation import (
     misplaced_rows,
     placement_errors,
 )
+from pincal.identify.solver import STD_MEANS
 from pincal.json_text import json_text
 from pincal.kinematics.effects import Extension, split_params
 from pincal.kinematics.models import PoeModel
@@ -163,7 +164,12 @@ def report_dict(
         ),
         "residual": None if outcome is None else outcome.residual.to_dict(),
         "balance": None if cal.balance is None else cal.balance.to_dict(),
-        "solver": {"jacobian_evaluations": cal.n_evaluations, "message": cal.message},
+        "solver": {
+            "jacobian_evaluations": cal.n_evaluations,
+            "message": cal.message,
+            "converged": cal.converged,
+        },
+        "std_means": STD_MEANS,
         "excluded_poses": [{"row": row, "residual_mm": size} for row, size in cal.excluded],
         "joint_changes": [change.to_dict() for change in origin_changes(cal)],
         "parameters": parameter_rows(cal),
@@ -223,6 +229,23 @@ def placements(cal: Calibration, data: Dataset | None) -> list[PlacementErrors]:
 WORSE = 1.01
 
 
+def _fit_warnings(cal: Calibration) -> list[str]:
+    """The fit's own warnings: a solver stopped at its evaluation limit, a pull's weight at the
+    edge of the grid the evidence scanned."""
+    out = []
+    if not cal.converged:
+        out.append(
+            f"the solver stopped at its evaluation limit ({cal.message}): the fit is not a minimum; "
+            "check the data and units, or fit fewer parameters"
+        )
+    if cal.prior is not None and cal.prior.at_edge:
+        out.append(
+            f"the pull's weight {cal.prior.weight:.3g} is at the edge of the weights the evidence scanned: "
+            "the data hardly determine the corrections (give --prior to set it)"
+        )
+    return out
+
+
 def report_warnings(
     cal: Calibration, data: Dataset | None = None, test: Dataset | None = None, found: Findings | None = None
 ) -> list[str]:
@@ -232,7 +255,7 @@ def report_warnings(
     held-out points that hold no known distance (its error is not judged);
     ``found``: :func:`findings` of ``data`` when already computed."""
     each, misplaced = findings(cal, data) if found is None else found
-    out = []
+    out = _fit_warnings(cal)
     if cal.test_after is not None and cal.test_before is not None:
         after, before = cal.test_after.headline_mm, cal.test_before.headline_mm
         if after > before * WORSE:
