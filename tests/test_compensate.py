@@ -17,7 +17,8 @@ import pytest
 
 import pincal
 from pincal import CalibratedRobot, Compensation, compensate_program, load_calibration
-from pincal.data.dataset import Targets, read_program, read_table
+from pincal.data.dataset import read_table
+from pincal.data.program import Targets, read_program
 from pincal.export.compensate import write_program
 from pincal.planning.plan import candidate_poses, plan_poses
 from pincal.simulation.truth import hide_effect

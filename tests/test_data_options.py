@@ -13,7 +13,7 @@ import pytest
 
 import pincal
 from pincal.cli import main
-from pincal.data.dataset import Targets, read_program
+from pincal.data.program import Targets, read_program
 
 
 def _write(path: Path, header: list[str], rows: np.ndarray) -> Path:

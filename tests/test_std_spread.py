@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 
 import pincal
-from pincal.identify.solver import identifiable_set, posterior_std, register, set_up, solve
+from pincal.identify.solver import identifiable_set, register, set_up, solve
+from pincal.identify.uncertainty import posterior_std
 
 DRAWS = 40
 
@@ -35,7 +36,7 @@ def test_std_is_the_spread_over_noise_draws(measure: str, n: int) -> None:
             free = identifiable_set(setup, nominal).identifiable
         theta, _ = solve(setup, nominal, free)
         estimates.append(theta)
-        stds.append(posterior_std(setup, theta, free))
+        stds.append(posterior_std(setup.problem, setup.scale, setup.prior_weight, theta, free))
     assert free is not None
     model = np.flatnonzero(free[: robot.n_joints * 6])
     spread = np.std(np.array(estimates)[:, model], axis=0, ddof=1)

@@ -24,6 +24,7 @@ import yaml
 from cli_run import one_error_line, run
 
 import pincal
+import pincal.data.program
 from pincal.export.ur_yaml import write_ur_kinematics
 from pincal.robot.ur_frames import DEFAULT_DH, SEGMENTS, default_ur_kinematics, read_ur_kinematics
 
@@ -326,7 +327,7 @@ def test_compensate_takes_the_yaml(
     assert loaded.robot.urdf_text != nominal.urdf_text  # the calibrated chain, not the factory one
     reg = loaded.instrument_T_base
     assert reg is not None
-    commands = pincal.data.dataset.read_program(compensated, nominal, False, "m")
+    commands = pincal.data.program.read_program(compensated, nominal, False, "m")
     targets = np.array([(nominal.frame_placement(q) * loaded.tool).translation for q in program])
 
     def reached(q: np.ndarray) -> np.ndarray:  # the true tool in the calibration's base frame

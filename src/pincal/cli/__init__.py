@@ -24,7 +24,8 @@ from collections.abc import Iterator, Sequence
 from types import FrameType
 
 from pincal.cli.flags import as_flags
-from pincal.cli.parser import attach_vectors, build_parser
+from pincal.cli.parser import build_parser
+from pincal.cli.values import attach_vectors
 from pincal.errors import PincalError
 from pincal.files import forget_inputs
 from pincal.inputs import run_scope

@@ -17,7 +17,8 @@ from pincal.robot.robots import Robot, load_robot
 def run(args: argparse.Namespace) -> int:
     """Run the command; 0 on success."""
     from pincal.cli.recording_data import recording_options, unused_recording_options
-    from pincal.data.dataset import Targets, csv_columns, read_program
+    from pincal.data.dataset import csv_columns
+    from pincal.data.program import Targets, read_program
     from pincal.data.recording_reader import is_recording
     from pincal.data.recordings import read_static_joints
     from pincal.export.calibrated_robot import load_calibration

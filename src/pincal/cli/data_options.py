@@ -53,3 +53,19 @@ def check_lock(chain: Robot, lock: tuple[str, ...]) -> None:
             f"--lock {','.join(unknown)}: not joints between the base and {chain.tip} "
             f"({', '.join(chain.joint_names)})"
         )
+
+
+def add_plausibility_options(cmd: argparse.ArgumentParser) -> None:
+    """``--quaternion-order`` and ``--accept-implausible``, shared by the data-reading commands."""
+    cmd.add_argument(
+        "--quaternion-order",
+        choices=QUATERNION_ORDERS,
+        default="wxyz",
+        help="wxyz (default): the columns qw,qx,qy,qz hold what their names say; xyzw: the four "
+        "quaternion columns, left to right, hold x, y, z, w (data exported as x,y,z,w)",
+    )
+    cmd.add_argument(
+        "--accept-implausible",
+        action="store_true",
+        help="keep a result that no rigid arm can be (a warning instead of an error)",
+    )

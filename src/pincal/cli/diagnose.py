@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pincal.auto.choice import choice_of
+from pincal.auto.choice import ModelChoice, choice_of
 from pincal.auto.pipeline import calibrate
 from pincal.cli.common import (
     chain,
@@ -22,17 +22,16 @@ from pincal.cli.common import (
     warn,
 )
 from pincal.cli.flags import as_flags
-from pincal.data.dataset import atomic_write
+from pincal.data.dataset import Dataset, atomic_write
 from pincal.errors import DataError, IdentifiabilityError, OutputError
+from pincal.identify.calibration import Calibration
 from pincal.json_text import json_text
-from pincal.report.outcome import outcome
+from pincal.report.outcome import Outcome, outcome
 
 
 def run(args: argparse.Namespace) -> int:
     """Run the command; 0 on success: the diagnosis of ``pincal calibrate --extend auto`` (one
     shared pipeline, so that both name the same cause), its candidates, and what remains."""
-    from pincal.report.plots import plot_diagnosis
-
     if args.plot is not None and args.plots is not None:
         raise DataError("give either --plot FILE.png or --plots DIR, not both")
     if args.plots is not None and args.plots.exists() and not args.plots.is_dir():
@@ -83,35 +82,51 @@ def run(args: argparse.Namespace) -> int:
     print(as_flags(f"residual: {found.residual.sentence()}; {found.residual.how}"))
     if found.caveat():
         print(as_flags(f"note: {found.caveat()}"))
-    wanted = args.plot is not None or args.plots is not None
-    if wanted and not result.baseline.measurement.measure.by_pairs:
-        for k, step in enumerate((result, *choice.more)):  # each cause with its own evidence
-            name = step.cause.extension.effect if step.cause else found.residual.verdict
-            suffix = f"_{k + 1}" if k else ""
-            if args.plot is not None:  # a second cause beside it as FILE_2.png
-                plot = args.plot.with_name(f"{args.plot.stem}{suffix}{args.plot.suffix}")
-            else:
-                plot = _created(args.plots) / f"diagnose_{name}{suffix}.png"
-            check_outputs(args, [plot], {"data file": args.data, "input URDF": urdf_path(args.robot)})
-            path = plot_diagnosis(step, data, plot, found.residual, as_flags)
-            print(f"plot written to {path}")
-    elif wanted:
-        warn(args, "no plot written: distance data has no per-pose residual to plot")
+    _plots(args, choice, data, found)
     if args.json is not None:
-        assert cal.plausibility is not None  # plausible() gives every fit its verdict
-        last = choice.more[-1] if choice.more else result
-        out = {
-            **result.to_dict(),
-            "extended": {"cv_rms_mm": last.extended_cv_rms_mm},
-            "gain": choice.gain if result.cause is not None else 1.0,
-            "causes": choice.to_dict()["causes"],
-            "plausibility": cal.plausibility.to_dict(),
-            "residual": found.residual.to_dict(),
-        }
-        atomic_write(args.json, as_flags(json_text(out)))
-        print(f"written to {args.json}")
+        _write_json(args.json, cal, choice, found)
     print(as_flags(found.verdict_line()))
     return 0
+
+
+def _plots(args: argparse.Namespace, choice: ModelChoice, data: Dataset, found: Outcome) -> None:
+    """``--plot FILE`` or ``--plots DIR``: each cause with its own evidence (a second cause beside
+    ``FILE`` as ``FILE_2.png``), or what remains when none is named."""
+    from pincal.report.plots import plot_diagnosis
+
+    assert choice.diagnosis is not None
+    if args.plot is None and args.plots is None:
+        return
+    if choice.diagnosis.baseline.measurement.measure.by_pairs:
+        warn(args, "no plot written: distance data has no per-pose residual to plot")
+        return
+    for k, step in enumerate((choice.diagnosis, *choice.more)):
+        name = step.cause.extension.effect if step.cause else found.residual.verdict
+        suffix = f"_{k + 1}" if k else ""
+        if args.plot is not None:
+            plot = args.plot.with_name(f"{args.plot.stem}{suffix}{args.plot.suffix}")
+        else:
+            plot = _created(args.plots) / f"diagnose_{name}{suffix}.png"
+        check_outputs(args, [plot], {"data file": args.data, "input URDF": urdf_path(args.robot)})
+        path = plot_diagnosis(step, data, plot, found.residual, as_flags)
+        print(f"plot written to {path}")
+
+
+def _write_json(path: Path, cal: Calibration, choice: ModelChoice, found: Outcome) -> None:
+    """The JSON of contracts.md, with every cause (``causes``) and the gain of all of them."""
+    result = choice.diagnosis
+    assert cal.plausibility is not None and result is not None  # plausible() gives every fit its verdict
+    last = choice.more[-1] if choice.more else result
+    out = {
+        **result.to_dict(),
+        "extended": {"cv_rms_mm": last.extended_cv_rms_mm},
+        "gain": choice.gain if result.cause is not None else 1.0,
+        "causes": choice.to_dict()["causes"],
+        "plausibility": cal.plausibility.to_dict(),
+        "residual": found.residual.to_dict(),
+    }
+    atomic_write(path, as_flags(json_text(out)))
+    print(f"written to {path}")
 
 
 def _created(folder: Path) -> Path:

@@ -3,11 +3,10 @@
 from __future__ import annotations
 
 import argparse
-from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
-from pincal.cli.data_options import add_lock, add_program_quaternion_order
+from pincal.cli.data_options import add_lock, add_plausibility_options, add_program_quaternion_order
 from pincal.cli.deliver_options import add_baseline_params, add_geometry, add_noise
 from pincal.cli.help_groups import group_options, report_option, version
 from pincal.cli.numeric import folds, fraction, rotation_weight, seed, sigmas, threads
@@ -23,7 +22,6 @@ from pincal.options import (
     MEASURES,
     MODELS,
     ORIENTATIONS,
-    QUATERNION_ORDERS,
     ROTATION_WEIGHT,
     THRESHOLD,
     UNITS,
@@ -176,7 +174,7 @@ def _add_tcp(sub: Any) -> None:
     tcp.add_argument("--degrees", action="store_true", help="with --robot: joint values in degrees")
     _add_robot_options(tcp, "--robot")
     add_lock(tcp)  # issue 31
-    _add_plausibility_options(tcp)
+    add_plausibility_options(tcp)
     _add_force(tcp)
 
 
@@ -329,32 +327,5 @@ def _add_data_options(cmd: argparse.ArgumentParser) -> None:
         default=ROTATION_WEIGHT,
         help="weight of orientation residuals for pose data [m/rad] (default 0.1: 1 mrad ~ 0.1 mm)",
     )
-    _add_plausibility_options(cmd)
+    add_plausibility_options(cmd)
     add_recording_options(cmd)
-
-
-def _add_plausibility_options(cmd: argparse.ArgumentParser) -> None:
-    cmd.add_argument(
-        "--quaternion-order",
-        choices=QUATERNION_ORDERS,
-        default="wxyz",
-        help="wxyz (default): the columns qw,qx,qy,qz hold what their names say; xyzw: the four "
-        "quaternion columns, left to right, hold x, y, z, w (data exported as x,y,z,w)",
-    )
-    cmd.add_argument(
-        "--accept-implausible",
-        action="store_true",
-        help="keep a result that no rigid arm can be (a warning instead of an error)",
-    )
-
-
-def attach_vectors(argv: Sequence[str]) -> list[str]:
-    """Write ``--tool-point -1,2,3`` as ``--tool-point=-1,2,3`` (also ``--instrument``): argparse
-    takes ``-1,2,3`` for an option."""
-    out: list[str] = []
-    for arg in argv:
-        if out and out[-1] in ("--tool-point", "--instrument") and arg.startswith("-"):
-            out[-1] = f"{out[-1]}={arg}"
-        else:
-            out.append(arg)
-    return out

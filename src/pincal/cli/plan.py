@@ -10,7 +10,8 @@ import numpy as np
 
 from pincal.cli.common import check_outputs, end_progress, progress_line, robot_options, urdf_path, warn
 from pincal.data.checks import check_limits
-from pincal.data.dataset import UNITS, Dataset, read_joints
+from pincal.data.dataset import UNITS, Dataset
+from pincal.data.program import read_joints
 from pincal.errors import DataError
 from pincal.robot.robots import Robot, load_robot
 

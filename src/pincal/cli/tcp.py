@@ -11,8 +11,9 @@ from pincal.cli.flags import as_flags
 from pincal.data.dataset import UNITS, atomic_write
 from pincal.errors import DataError, ImplausibleError
 from pincal.json_text import json_text
+from pincal.tool.flange_poses import read_flange_poses
 from pincal.tool.plausibility import judge_tool
-from pincal.tool.tcp import calibrate_tool, read_flange_poses
+from pincal.tool.tcp import calibrate_tool
 
 
 def run(args: argparse.Namespace) -> int:

@@ -4,6 +4,7 @@ raises :class:`argparse.ArgumentTypeError` with what was expected."""
 from __future__ import annotations
 
 import argparse
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -73,3 +74,15 @@ def mapping(text: str) -> dict[str, str]:
         raise argparse.ArgumentTypeError(
             f"expected NAME=COLUMN pairs separated by commas, got {text!r}"
         ) from None
+
+
+def attach_vectors(argv: Sequence[str]) -> list[str]:
+    """Write ``--tool-point -1,2,3`` as ``--tool-point=-1,2,3`` (also ``--instrument``): argparse
+    takes ``-1,2,3`` for an option."""
+    out: list[str] = []
+    for arg in argv:
+        if out and out[-1] in ("--tool-point", "--instrument") and arg.startswith("-"):
+            out[-1] = f"{out[-1]}={arg}"
+        else:
+            out.append(arg)
+    return out

@@ -24,7 +24,8 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from pincal.data.dataset import Targets, atomic_write
+from pincal.data.dataset import atomic_write
+from pincal.data.program import Targets
 from pincal.errors import DataError, NotSupportedError
 from pincal.export.calibrated_robot import CalibratedRobot
 from pincal.identify.kinds import get_kind

@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 import pinocchio as pin
+from lxml import etree
 
 #: Decimals kept of an origin's metres and radians.
 DECIMALS = 12
@@ -155,3 +156,22 @@ def origin_change(joint: str, before: pin.SE3, after: pin.SE3) -> OriginChange:
     shift = (after.translation - before.translation) * 1e3
     turn = pin.log3(before.rotation.T @ after.rotation) * 1e3
     return OriginChange(joint, np.asarray(shift), np.asarray(turn))
+
+
+def read_origin(element: etree._Element | None) -> pin.SE3:
+    """SE3 of a URDF ``<origin>`` (missing: identity); rpy as URDF: R = Rz(y) Ry(p) Rx(r)."""
+    if element is None:
+        return pin.SE3.Identity()
+    xyz = [float(v) for v in (element.get("xyz") or "0 0 0").split()]
+    rpy = [float(v) for v in (element.get("rpy") or "0 0 0").split()]
+    return pin.SE3(pin.rpy.rpyToMatrix(*rpy), np.array(xyz))
+
+
+def write_origin(joint: etree._Element, placement: pin.SE3) -> None:
+    """Write ``placement`` as the joint's ``<origin>``, near its text as it was
+    (:func:`origin_attributes`: the nearest rpy, no digits below 1e-12)."""
+    origin = joint.find("origin")
+    origin = etree.SubElement(joint, "origin") if origin is None else origin
+    xyz, rpy = origin_attributes(placement, origin.get("xyz"), origin.get("rpy"))
+    origin.set("xyz", xyz)
+    origin.set("rpy", rpy)

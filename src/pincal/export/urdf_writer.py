@@ -35,7 +35,7 @@ from lxml import etree
 
 from pincal.errors import DataError, ImplausibleError, PincalError
 from pincal.export.effects_json import effects_json
-from pincal.export.origins import OriginChange, origin_attributes, origin_change
+from pincal.export.origins import OriginChange, origin_change, read_origin, write_origin
 from pincal.files import atomic_write_many
 from pincal.identify.calibration import Calibration
 from pincal.json_text import json_text
@@ -43,25 +43,6 @@ from pincal.kinematics.chain import Chain, forward
 from pincal.robot.robots import Robot
 
 _PARSER = etree.XMLParser(resolve_entities=False, no_network=True, load_dtd=False, remove_comments=False)
-
-
-def _origin(element: etree._Element | None) -> pin.SE3:
-    """SE3 of a URDF ``<origin>`` (missing: identity); rpy as URDF: R = Rz(y) Ry(p) Rx(r)."""
-    if element is None:
-        return pin.SE3.Identity()
-    xyz = [float(v) for v in (element.get("xyz") or "0 0 0").split()]
-    rpy = [float(v) for v in (element.get("rpy") or "0 0 0").split()]
-    return pin.SE3(pin.rpy.rpyToMatrix(*rpy), np.array(xyz))
-
-
-def _set_origin(joint: etree._Element, placement: pin.SE3) -> None:
-    """Write ``placement`` as the joint's ``<origin>``, near its text as it was
-    (:func:`pincal.export.origins.origin_attributes`: the nearest rpy, no digits below 1e-12)."""
-    origin = joint.find("origin")
-    origin = etree.SubElement(joint, "origin") if origin is None else origin
-    xyz, rpy = origin_attributes(placement, origin.get("xyz"), origin.get("rpy"))
-    origin.set("xyz", xyz)
-    origin.set("rpy", rpy)
 
 
 def origin_changes(cal: Calibration) -> list[OriginChange]:
@@ -72,7 +53,7 @@ def origin_changes(cal: Calibration) -> list[OriginChange]:
     ball = _ball_joint(_read(cal.robot), cal)
     names = [*cal.robot.joint_names, *([ball.get("name")] if ball is not None else [])]
     return [
-        origin_change(name, _origin(before[name].find("origin")), _origin(after[name].find("origin")))
+        origin_change(name, read_origin(before[name].find("origin")), read_origin(after[name].find("origin")))
         for name in names
     ]
 
@@ -127,7 +108,7 @@ def corrected_origins(cal: Calibration, root: etree._Element | None = None) -> d
     joints = {j.get("name"): j for j in (_read(cal.robot) if root is None else root).findall("joint")}
     out = {}
     for name, c_tilde, c_nominal in zip(cal.robot.joint_names, urdf_chain(cal), cal.robot.placements):
-        between = c_nominal * _origin(joints[name].find("origin")).inverse()  # K_j: fixed, locked joints
+        between = c_nominal * read_origin(joints[name].find("origin")).inverse()  # K_j: fixed, locked joints
         out[name] = between.actInv(c_tilde)
     return out
 
@@ -146,10 +127,10 @@ def corrected_urdf(cal: Calibration, add_frame: str | None = None) -> bytes:
     check_frame_name(add_frame)
     joints = {j.get("name"): j for j in root.findall("joint")}
     for name, origin in corrected_origins(cal, root).items():
-        _set_origin(joints[name], origin)
+        write_origin(joints[name], origin)
     ball = _ball_joint(root, cal)
     if ball is not None:
-        _set_origin(ball, _origin(ball.find("origin")) * pin.SE3(np.eye(3), cal.split()[2].translation))
+        write_origin(ball, read_origin(ball.find("origin")) * pin.SE3(np.eye(3), cal.split()[2].translation))
     if add_frame is not None:
         _add_frame(root, robot.tip, add_frame, cal)
     return _prolog(robot_source(robot)) + etree.tostring(root, encoding="UTF-8") + b"\n"
@@ -163,7 +144,7 @@ def moved_origins(source: bytes, moves: dict[str, pin.SE3]) -> bytes:
     for name, move in moves.items():
         if name not in joints:
             raise DataError(f"complete names the joint {name!r}, which the URDF does not have")
-        _set_origin(joints[name], _origin(joints[name].find("origin")) * move)
+        write_origin(joints[name], read_origin(joints[name].find("origin")) * move)
     return _prolog(source) + etree.tostring(root, encoding="UTF-8") + b"\n"
 
 
@@ -173,8 +154,8 @@ def _as_written(origin: pin.SE3, given: etree._Element | None = None) -> pin.SE3
     element = etree.Element("joint")
     if given is not None:
         etree.SubElement(element, "origin", {k: v for k, v in given.attrib.items() if k in ("xyz", "rpy")})
-    _set_origin(element, origin)
-    return _origin(element.find("origin"))
+    write_origin(element, origin)
+    return read_origin(element.find("origin"))
 
 
 def complete(cal: Calibration) -> dict[str, Any] | None:
@@ -257,7 +238,7 @@ def _add_frame(root: etree._Element, tip: str, name: str, cal: Calibration) -> N
     placement = tool if cal.measurement.measure.tool_dof == 6 else pin.SE3(np.eye(3), tool.translation)
     if _ball_joint(root, cal) is not None:  # the tip link is the ball's centre already
         placement = pin.SE3.Identity()
-    _set_origin(joint, placement)
+    write_origin(joint, placement)
     joint.tail = indent
     etree.SubElement(root, "link", name=name).tail = "\n"
 

@@ -9,17 +9,14 @@ within ``keep_all`` (5 %) of it: the prefix's score is biased low by the choosin
 win clearly (114 Panda poses: the full model predicts 7 % better than the prefix, its score only 1.4 % above
 the lowest; 37 TIAGo poses: the prefix wins, 2.28 against 4.38 mm).
 
-Every candidate is scored in closed form on the problem linearised at the registration-only fit.
-With ``H`` the hat matrix of the current columns and ``e`` the fit's residual, the residual of
-a group of rows ``g`` predicted by a fit on the other rows is ``(I - H_gg)⁻¹ e_g`` (the PRESS
-identity); adding one column ``u`` (orthonormalised against the current ones) changes ``H`` by
-``u uᵀ`` and ``e`` by ``-u uᵀe``: a few small solves per group and candidate. A group is a pose
+Every candidate is scored in closed form on the problem linearised at the registration-only fit:
+with ``H`` the hat matrix of the current columns and ``e`` the fit's residual, a group of rows
+``g`` predicted by a fit on the other rows leaves ``(I - H_gg)⁻¹ e_g`` (PRESS); adding a column
+``u`` (orthonormalised) changes ``H`` by ``u uᵀ`` and ``e`` by ``-u uᵀe``. A group is a pose
 (leave-one-out) or a fold; for distance data, the rows of every pair with a pose in it.
-:func:`pincal.auto.selection.cross_validate_selection` judges the whole procedure (selection, then the
-nonlinear fit of the chosen set) by K-fold cross-validation, the selection re-run on each fold's fitted poses:
-the cross-validated RMS of the chosen step is biased low by the choice itself, this is not (it
-fits with :func:`pincal.calibrate`, so it is :mod:`pincal.auto.selection`'s, above the pipeline; this
-module is below it, which selects with it).
+:func:`pincal.auto.selection.cross_validate_selection` judges the whole procedure by K-fold
+cross-validation, the selection re-run on each fold's fitted poses: the chosen step's score is
+biased low by the choice itself, that one is not.
 """
 
 from __future__ import annotations
@@ -344,8 +341,7 @@ def select_on(
     max_params: int | None = None,
     start: np.ndarray | None = None,
 ) -> Selection:
-    """:func:`select_parameters` on a problem already set up (its extension fitted at every step),
-    from ``start``, the fit of the registration, tool and extension alone (computed if None)."""
+    """:func:`select_parameters` on a set-up problem, from ``start`` (default: :func:`register`'s)."""
     start = register(setup, with_extension=True) if start is None else start
     path, complete = selection_path(setup, start, folds, seed, max_params)
     stop = choose_step(path, complete, min_gain, keep_all)

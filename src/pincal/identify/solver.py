@@ -10,9 +10,8 @@
    set, 1 mm and the rotation that moves the workspace by 1 mm weighing the same, each
    correction held near the URDF (``Setup.prior_weight``, :mod:`pincal.identify.prior`);
 5. :func:`screen_outliers`: poses far outside the others' residuals (see :mod:`pincal.identify.outliers`);
-6. :func:`assess`: posterior standard deviations ``σ² (JᵀJ + w²P)⁻¹`` (the pull's weight ``w`` on
-   the geometric corrections, :func:`posterior_std`), and the errors before and after on the
-   fitted and held-out poses; a fit stopped at :data:`MAX_EVALUATIONS` is flagged.
+6. :func:`assess`: standard deviations (:mod:`pincal.identify.uncertainty`), the errors before
+   and after on the fitted and held-out poses; a fit stopped at :data:`MAX_EVALUATIONS` flagged.
 
 ``params="auto"`` and ``extension="auto"`` are chosen by :func:`pincal.auto.choice.choose` between
 steps 2 and 4, on the poses being fitted only.
@@ -41,6 +40,7 @@ from pincal.identify.lm import OptimizeResult, levenberg_marquardt
 from pincal.identify.measurements import ROTATION_WEIGHT, Measurement, Problem
 from pincal.identify.outliers import find_outliers
 from pincal.identify.registration import initial_measurement
+from pincal.identify.uncertainty import posterior_std
 from pincal.kinematics.chain import Chain, forward
 from pincal.kinematics.effects import AnyEffect
 from pincal.kinematics.mdh import make_model
@@ -59,17 +59,6 @@ PRIOR_WEIGHT = 1.5e-3
 #: Most evaluations of the residuals in one fit; a fit stopped there is flagged
 #: (:attr:`pincal.identify.calibration.Calibration.converged`).
 MAX_EVALUATIONS = 200
-
-#: What the reported standard deviations are.
-STD_MEANS = (
-    "posterior standard deviation: sigma^2 (J^T J + w^2 P)^-1 with the pull toward the URDF "
-    "(weight w on the geometric corrections, P), sigma^2 = (|r|^2 + w^2 |delta|^2) / (n + p - k); "
-    "for pose data, the estimator's covariance M J^T D J M (D: each row's noise variance, position "
-    "and orientation rows apart); for distance data, the estimator's covariance "
-    "M J^T A A^T J M sigma^2 (M = (J^T J + w^2 P)^-1, "
-    "A carries noise on the measured points to the pairs, sigma per axis from "
-    "E|r|^2 = sigma^2 tr((I-H) A A^T))"
-)
 
 
 @dataclass(frozen=True, eq=False)
@@ -330,7 +319,7 @@ def assess(
         urdf_setup = Setup(urdf_problem, setup.scale[: urdf_problem.n_params], setup.tool)
         urdf_theta, _ = solve(urdf_setup, urdf_theta, np.arange(urdf_problem.n_params) >= n_model)
 
-    std = posterior_std(setup, theta, ident.identifiable)
+    std = posterior_std(setup.problem, setup.scale, setup.prior_weight, theta, ident.identifiable)
 
     def stats(meas: Measurement, th: np.ndarray, on: Dataset | None) -> Any:
         return None if on is None else evaluate(mdl, meas, th, on, ext)
@@ -359,90 +348,3 @@ def assess(
         message=str(result.message),
         converged=bool(result.get("success", True)),
     )
-
-
-def posterior_std(setup: Setup, theta: np.ndarray, free: np.ndarray) -> np.ndarray:
-    """Each unknown's posterior standard deviation at the fit ``theta`` (0 where not free) [m or rad].
-
-    The linearised Gaussian model of :mod:`pincal.identify.prior`: residuals ``N(0, σ²)``,
-    geometric corrections ``N(0, (σ/w)²)`` in natural units (``w = setup.prior_weight``), so the
-    covariance is ``σ² (JᵀJ + w²P)⁻¹`` and ``σ²`` the evidence's profiled value
-    ``(|r|² + w²|δ|²) / (n + p - k)`` (``p`` pulled of the ``k`` free unknowns). Distance rows are
-    not independent (N points make N(N-1)/2 pairs): :func:`pair_std`.
-    """
-    problem = setup.problem
-    if problem.measurement.measure.by_pairs:
-        return pair_std(setup, theta, free)
-    if problem.measurement.measure.orientation:
-        return pose_std(setup, theta, free)
-    std = np.zeros(problem.n_params)
-    scale = setup.scale[free]
-    gram = chunked.gram(problem, theta, free) * np.outer(scale, scale)  # issue 33
-    pen = np.arange(int(free.sum())) < int(free[: problem.model.n_params].sum())
-    geometric = np.flatnonzero(free)[pen]
-    delta = (theta[geometric] - problem.initial_theta()[geometric]) / setup.scale[geometric]
-    res = problem.residuals(theta)
-    weight = setup.prior_weight
-    dof = len(res) + int(pen.sum()) - int(free.sum())
-    sigma2 = float(res @ res + weight**2 * delta @ delta) / max(dof, 1)
-    cov = np.linalg.pinv(gram + weight**2 * np.diag(pen.astype(float))) * sigma2
-    std[free] = np.sqrt(np.clip(np.diag(cov), 0.0, None)) * scale
-    return std
-
-
-def pose_std(setup: Setup, theta: np.ndarray, free: np.ndarray) -> np.ndarray:
-    """Standard deviations [m or rad] of a pose fit, whose position and orientation rows carry
-    noise of different sizes: the estimator's covariance ``M Jᵀ D J M`` (``M = (JᵀJ + w²P)⁻¹``,
-    ``D`` each row's noise variance), each kind's variance from its residual rows
-    ``Σ r² / Σ (1 - h)`` (``h`` the hat matrix's diagonal)."""
-    problem = setup.problem
-    std = np.zeros(problem.n_params)
-    scale = setup.scale[free]
-    jac = problem.jacobian(theta, free) * scale
-    res = problem.residuals(theta)
-    pen = np.arange(int(free.sum())) < int(free[: problem.model.n_params].sum())
-    inverse = np.linalg.pinv(jac.T @ jac + setup.prior_weight**2 * np.diag(pen.astype(float)))
-    left = 1.0 - np.einsum("ij,jk,ik->i", jac, inverse, jac)
-    width = problem.measurement.measure.width
-    turned = (np.arange(len(res)) % width) >= 3
-    variance = np.empty(len(res))
-    for rows in (turned, ~turned):
-        variance[rows] = float(res[rows] @ res[rows]) / max(float(left[rows].sum()), 1e-12)
-    cov = inverse @ (jac.T @ (jac * variance[:, None])) @ inverse
-    std[free] = np.sqrt(np.clip(np.diag(cov), 0.0, None)) * scale
-    return std
-
-
-def carried_to_points(problem: Problem, jac: np.ndarray) -> np.ndarray:
-    """``Aᵀ J`` (3N, k) for the map ``A`` (pairs, 3N) from noise on the measured points to the
-    pairs' distance rows (row ``p`` holds the pair's unit vector ``u_p`` at its first point's
-    coordinates and ``-u_p`` at its second's), without forming ``A``."""
-    pairs, points = problem.pairs, problem.data.points
-    along = points[pairs[:, 0]] - points[pairs[:, 1]]
-    along /= np.linalg.norm(along, axis=1, keepdims=True)
-    out = np.zeros((len(points), 3, jac.shape[1]))
-    each = along[:, :, None] * jac[:, None, :]  # (pairs, 3, k)
-    np.add.at(out, pairs[:, 0], each)
-    np.add.at(out, pairs[:, 1], -each)
-    return out.reshape(3 * len(points), jac.shape[1])
-
-
-def pair_std(setup: Setup, theta: np.ndarray, free: np.ndarray) -> np.ndarray:
-    """Standard deviations [m or rad] of a distance fit: the estimator's covariance under noise of
-    ``σ`` per axis on the measured points, carried to the pairs by ``A`` (:func:`carried_to_points`):
-    ``M Jᵀ A Aᵀ J M σ²`` with ``M = (JᵀJ + w²P)⁻¹``, and ``σ²`` from the residual's expected
-    size ``E|r|² = σ² tr((I - H) A Aᵀ)`` (``H = J M Jᵀ``): the pairs counted for the 3N coordinates they
-    come from, not as N(N-1)/2 independent rows."""
-    problem = setup.problem
-    std = np.zeros(problem.n_params)
-    scale = setup.scale[free]
-    jac = problem.jacobian(theta, free) * scale
-    res = problem.residuals(theta)
-    pen = np.arange(int(free.sum())) < int(free[: problem.model.n_params].sum())
-    inverse = np.linalg.pinv(jac.T @ jac + setup.prior_weight**2 * np.diag(pen.astype(float)))
-    carried = carried_to_points(problem, jac)  # Aᵀ J; tr(A Aᵀ) = 2 per pair (two unit vectors)
-    left = 2.0 * len(res) - float(np.trace(inverse @ carried.T @ carried))
-    sigma2 = float(res @ res) / max(left, 1e-12)
-    cov = inverse @ (carried.T @ carried) @ inverse * sigma2
-    std[free] = np.sqrt(np.clip(np.diag(cov), 0.0, None)) * scale
-    return std

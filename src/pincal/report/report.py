@@ -22,7 +22,7 @@ from pincal.identify.evaluation import (
     misplaced_rows,
     placement_errors,
 )
-from pincal.identify.solver import STD_MEANS
+from pincal.identify.uncertainty import STD_MEANS
 from pincal.json_text import json_text
 from pincal.kinematics.effects import Extension, split_params
 from pincal.kinematics.models import PoeModel
@@ -93,6 +93,39 @@ def _choice_dict(cal: Calibration) -> dict[str, Any] | None:
     return out
 
 
+def _pair(
+    before: ErrorStats | None,
+    after: ErrorStats | None,
+    urdf: ErrorStats | None,
+    alone: ErrorStats | None,
+    rows: list[int] | None = None,
+) -> Any:
+    """The report's ``train`` or ``test``: ERR before and after, the URDF as is, the URDF alone as
+    exported, and the rows scored (None without poses)."""
+    if before is None or after is None:
+        return None
+    out: dict[str, Any] = {"before": before.to_dict(), "after": after.to_dict(), "rows": rows}
+    if urdf is not None:
+        out["urdf"] = urdf.to_dict()
+    if alone is not None:
+        out["exported"] = alone.to_dict()
+    return out
+
+
+def _poe_dict(cal: Calibration) -> dict[str, Any]:
+    """For a POE model, the calibrated twists [mm for v] and the tool point at zero angles [mm]."""
+    if not isinstance(cal.model, PoeModel):
+        return {}
+    _, _, tool = cal.split()
+    rot, pos = cal.base_T_tip(np.zeros(cal.robot.n_joints))
+    home = pin.SE3(rot[0], pos[0])
+    twists = [
+        {"joint": j, "omega": [float(v) for v in xi[3:]], "v_mm": [float(v) * 1e3 for v in xi[:3]]}
+        for j, xi in zip(cal.robot.joint_names, cal.model.joint_twists(cal.x))
+    ]
+    return {"twists": twists, "p_E0_mm": [float(v) * 1e3 for v in home.act(tool.translation)]}
+
+
 def report_dict(
     cal: Calibration, data: Dataset | None = None, test: Dataset | None = None, outcome: Outcome | None = None
 ) -> dict[str, Any]:
@@ -101,33 +134,7 @@ def report_dict(
     files' errors and the residual verdict (:func:`pincal.report.outcome.outcome`)."""
     exported = outcome.exported if outcome is not None else None
 
-    def pair(
-        before: ErrorStats | None,
-        after: ErrorStats | None,
-        urdf: ErrorStats | None,
-        alone: ErrorStats | None,
-        rows: list[int] | None = None,
-    ) -> Any:
-        if before is None or after is None:
-            return None
-        out: dict[str, Any] = {"before": before.to_dict(), "after": after.to_dict(), "rows": rows}
-        if urdf is not None:
-            out["urdf"] = urdf.to_dict()
-        if alone is not None:
-            out["exported"] = alone.to_dict()
-        return out
-
     ident, found = cal.identifiability, findings(cal, data)
-    extra: dict[str, Any] = {}
-    if isinstance(cal.model, PoeModel):
-        _, _, tool = cal.split()
-        rot, pos = cal.base_T_tip(np.zeros(cal.robot.n_joints))
-        home = pin.SE3(rot[0], pos[0])
-        extra["twists"] = [
-            {"joint": j, "omega": [float(v) for v in xi[3:]], "v_mm": [float(v) * 1e3 for v in xi[:3]]}
-            for j, xi in zip(cal.robot.joint_names, cal.model.joint_twists(cal.x))
-        ]
-        extra["p_E0_mm"] = [float(v) * 1e3 for v in home.act(tool.translation)]
     return {
         "robot": cal.robot.name,
         "tip": cal.robot.tip,
@@ -148,14 +155,14 @@ def report_dict(
         "urdf_means": "the URDF as it is: nominal tool, only the instrument registration fitted",
         "exported_means": "the written URDF alone, with the sidecar's registration and tool (as a URDF "
         "consumer loads it); after: the URDF with the whole sidecar",
-        "train": pair(
+        "train": _pair(
             cal.train_before,
             cal.train_after,
             cal.train_urdf,
             exported.train if exported else None,
             scored_rows(data, cal.excluded),
         ),
-        "test": pair(
+        "test": _pair(
             cal.test_before,
             cal.test_after,
             cal.test_urdf,
@@ -180,7 +187,7 @@ def report_dict(
         "guard": None if cal.guard is None else cal.guard.to_dict(),
         "plausibility": None if cal.plausibility is None else cal.plausibility.to_dict(),
         "extension": extension_dict(cal, data),
-        **extra,
+        **_poe_dict(cal),
     }
 
 

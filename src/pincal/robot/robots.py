@@ -26,11 +26,8 @@ import pinocchio as pin
 
 from pincal.errors import RobotError
 from pincal.options import BUNDLED
-from pincal.robot.descriptions import (
-    URDF_SUFFIXES,
-    borrow_inertias,
-    robot_description,
-)
+from pincal.robot.descriptions import URDF_SUFFIXES, robot_description
+from pincal.robot.inertias import borrow_inertias
 from pincal.robot.joint_kinds import actuated_joints, joint_path, mimic_joints, reference_configuration
 from pincal.robot.urdf_checks import check_urdf_structure
 
@@ -222,7 +219,7 @@ def load_robot(
         xacro_args, package_paths, kinematics: a xacro's arguments and ``$(find)`` folders, and a
             UR kinematics YAML applied on top (see :func:`pincal.robot.descriptions.robot_description`).
         inertias: a URDF (or bundled name) whose links lend their masses to the links of the same
-            name that have none (:func:`pincal.robot.descriptions.borrow_inertias`), for gravity torques;
+            name that have none (:func:`pincal.robot.inertias.borrow_inertias`), for gravity torques;
             ``urdf_text`` stays the URDF's own.
 
     Raises:

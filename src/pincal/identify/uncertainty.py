@@ -1,0 +1,111 @@
+"""The standard deviations a calibration reports: the posterior ones with the pull toward the
+URDF, each measurement kind's rows counted for the noise they carry (position rows alike;
+pose data's position and orientation rows apart; distance pairs for the 3N coordinates they come
+from). Scales are the unknowns' natural sizes (:class:`pincal.identify.solver.Setup`)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pincal.identify import chunked
+from pincal.identify.measurements import Problem
+
+#: What the reported standard deviations are.
+STD_MEANS = (
+    "posterior standard deviation: sigma^2 (J^T J + w^2 P)^-1 with the pull toward the URDF "
+    "(weight w on the geometric corrections, P), sigma^2 = (|r|^2 + w^2 |delta|^2) / (n + p - k); "
+    "for pose data, the estimator's covariance M J^T D J M (D: each row's noise variance, position "
+    "and orientation rows apart); for distance data, the estimator's covariance "
+    "M J^T A A^T J M sigma^2 (M = (J^T J + w^2 P)^-1, "
+    "A carries noise on the measured points to the pairs, sigma per axis from "
+    "E|r|^2 = sigma^2 tr((I-H) A A^T))"
+)
+
+
+def posterior_std(
+    problem: Problem, scale: np.ndarray, weight: float, theta: np.ndarray, free: np.ndarray
+) -> np.ndarray:
+    """Each unknown's posterior standard deviation at the fit ``theta`` (0 where not free) [m or rad].
+
+    The linearised Gaussian model of :mod:`pincal.identify.prior`: residuals ``N(0, σ²)``,
+    geometric corrections ``N(0, (σ/w)²)`` in natural units (``w = weight``), so the
+    covariance is ``σ² (JᵀJ + w²P)⁻¹`` and ``σ²`` the evidence's profiled value
+    ``(|r|² + w²|δ|²) / (n + p - k)`` (``p`` pulled of the ``k`` free unknowns). Distance rows are
+    not independent (N points make N(N-1)/2 pairs): :func:`pair_std`.
+    """
+    if problem.measurement.measure.by_pairs:
+        return pair_std(problem, scale, weight, theta, free)
+    if problem.measurement.measure.orientation:
+        return pose_std(problem, scale, weight, theta, free)
+    std = np.zeros(problem.n_params)
+    full_scale, scale = scale, scale[free]
+    gram = chunked.gram(problem, theta, free) * np.outer(scale, scale)  # issue 33
+    pen = np.arange(int(free.sum())) < int(free[: problem.model.n_params].sum())
+    geometric = np.flatnonzero(free)[pen]
+    delta = (theta[geometric] - problem.initial_theta()[geometric]) / full_scale[geometric]
+    res = problem.residuals(theta)
+    dof = len(res) + int(pen.sum()) - int(free.sum())
+    sigma2 = float(res @ res + weight**2 * delta @ delta) / max(dof, 1)
+    cov = np.linalg.pinv(gram + weight**2 * np.diag(pen.astype(float))) * sigma2
+    std[free] = np.sqrt(np.clip(np.diag(cov), 0.0, None)) * scale
+    return std
+
+
+def pose_std(
+    problem: Problem, scale: np.ndarray, weight: float, theta: np.ndarray, free: np.ndarray
+) -> np.ndarray:
+    """Standard deviations [m or rad] of a pose fit, whose position and orientation rows carry
+    noise of different sizes: the estimator's covariance ``M Jᵀ D J M`` (``M = (JᵀJ + w²P)⁻¹``,
+    ``D`` each row's noise variance), each kind's variance from its residual rows
+    ``Σ r² / Σ (1 - h)`` (``h`` the hat matrix's diagonal)."""
+    std = np.zeros(problem.n_params)
+    scale = scale[free]
+    jac = problem.jacobian(theta, free) * scale
+    res = problem.residuals(theta)
+    pen = np.arange(int(free.sum())) < int(free[: problem.model.n_params].sum())
+    inverse = np.linalg.pinv(jac.T @ jac + weight**2 * np.diag(pen.astype(float)))
+    left = 1.0 - np.einsum("ij,jk,ik->i", jac, inverse, jac)
+    width = problem.measurement.measure.width
+    turned = (np.arange(len(res)) % width) >= 3
+    variance = np.empty(len(res))
+    for rows in (turned, ~turned):
+        variance[rows] = float(res[rows] @ res[rows]) / max(float(left[rows].sum()), 1e-12)
+    cov = inverse @ (jac.T @ (jac * variance[:, None])) @ inverse
+    std[free] = np.sqrt(np.clip(np.diag(cov), 0.0, None)) * scale
+    return std
+
+
+def carried_to_points(problem: Problem, jac: np.ndarray) -> np.ndarray:
+    """``Aᵀ J`` (3N, k) for the map ``A`` (pairs, 3N) from noise on the measured points to the
+    pairs' distance rows (row ``p`` holds the pair's unit vector ``u_p`` at its first point's
+    coordinates and ``-u_p`` at its second's), without forming ``A``."""
+    pairs, points = problem.pairs, problem.data.points
+    along = points[pairs[:, 0]] - points[pairs[:, 1]]
+    along /= np.linalg.norm(along, axis=1, keepdims=True)
+    out = np.zeros((len(points), 3, jac.shape[1]))
+    each = along[:, :, None] * jac[:, None, :]  # (pairs, 3, k)
+    np.add.at(out, pairs[:, 0], each)
+    np.add.at(out, pairs[:, 1], -each)
+    return out.reshape(3 * len(points), jac.shape[1])
+
+
+def pair_std(
+    problem: Problem, scale: np.ndarray, weight: float, theta: np.ndarray, free: np.ndarray
+) -> np.ndarray:
+    """Standard deviations [m or rad] of a distance fit: the estimator's covariance under noise of
+    ``σ`` per axis on the measured points, carried to the pairs by ``A`` (:func:`carried_to_points`):
+    ``M Jᵀ A Aᵀ J M σ²`` with ``M = (JᵀJ + w²P)⁻¹``, and ``σ²`` from the residual's expected
+    size ``E|r|² = σ² tr((I - H) A Aᵀ)`` (``H = J M Jᵀ``): the pairs counted for the 3N coordinates they
+    come from, not as N(N-1)/2 independent rows."""
+    std = np.zeros(problem.n_params)
+    scale = scale[free]
+    jac = problem.jacobian(theta, free) * scale
+    res = problem.residuals(theta)
+    pen = np.arange(int(free.sum())) < int(free[: problem.model.n_params].sum())
+    inverse = np.linalg.pinv(jac.T @ jac + weight**2 * np.diag(pen.astype(float)))
+    carried = carried_to_points(problem, jac)  # Aᵀ J; tr(A Aᵀ) = 2 per pair (two unit vectors)
+    left = 2.0 * len(res) - float(np.trace(inverse @ carried.T @ carried))
+    sigma2 = float(res @ res) / max(left, 1e-12)
+    cov = inverse @ (carried.T @ carried) @ inverse * sigma2
+    std[free] = np.sqrt(np.clip(np.diag(cov), 0.0, None)) * scale
+    return std
