@@ -44,7 +44,7 @@ Checks per run (exit status 1 when one fails, or a run does not exit 0):
 Usage::
 
     python benchmarks/several_causes.py [--quick] [--sims own pin] [--robots ur5 panda]
-        [--cases NAME ...] [--seeds 1] [--poses 120] [--test-poses 30] [--jobs 1]
+        [--cases NAME ...] [--seeds 1] [--first-seed 0] [--poses 120] [--test-poses 30] [--jobs 1]
         [--markdown docs/results/generated/several_causes.md] [--json FILE] [--keep DIR]
 
 The default runs every case on ur5 and panda with both simulators (36 runs, about 25 min on two
@@ -469,6 +469,7 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--robots", nargs="+", choices=tuple(ROLES), default=list(ROLES))
     parser.add_argument("--cases", nargs="+", choices=tuple(CASES), help="default: every case")
     parser.add_argument("--seeds", type=int, default=1)
+    parser.add_argument("--first-seed", type=int, default=0, help="seeds run: first-seed .. + seeds - 1")
     parser.add_argument("--poses", type=int, default=120, help="fitted rows")
     parser.add_argument("--test-poses", type=int, default=30, help="held-out rows, after the fitted ones")
     parser.add_argument("--jobs", type=int, default=1)
@@ -488,7 +489,7 @@ def main(argv: list[str] | None = None) -> int:
         cases = args.cases or (QUICK[sim] if args.quick else tuple(CASES))
         for robot in robots:
             for case in cases:
-                for seed in range(1 if args.quick else args.seeds):
+                for seed in range(args.first_seed, args.first_seed + (1 if args.quick else args.seeds)):
                     hidden = labels(case, robot)
                     runs.append(Run(sim, robot, case, seed, case_kind(case), hidden, []))
     print(f"{len(runs)} runs; noise {NOISE_MM} mm per axis, floor {FLOOR_MM:.4f} mm", flush=True)
@@ -512,7 +513,10 @@ def main(argv: list[str] | None = None) -> int:
     print()
     print("\n".join(lines))
     if args.markdown:
-        argv_used = sys.argv[1:] if argv is None else argv
+        argv_used = list(sys.argv[1:] if argv is None else argv)
+        if "--keep" in argv_used:  # a folder of this machine: not part of the command
+            at = argv_used.index("--keep")
+            del argv_used[at : at + 2]
         notes = (
             f"Fitted rows {args.poses}, held-out rows {args.test_poses} (later in time, a separate "
             f"`--test` CSV); noise {NOISE_MM} mm per axis; floor √3 × {NOISE_MM} = {FLOOR_MM:.4f} mm. "
