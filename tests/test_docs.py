@@ -19,7 +19,7 @@ from pincal.simulation.truth import hide_effect
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 #: Objects whose keys are names from the data (parameters, joints), not keys to document.
-NAMED_KEYS = ("held", "parameters", "joint_origins")
+NAMED_KEYS = ("held", "parameters", "joint_origins", "markers")
 
 
 def keys(obj: Any) -> set[str]:

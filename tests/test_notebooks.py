@@ -158,3 +158,13 @@ def test_recordings_notebook_lowers_ap_and_keeps_rp() -> None:
     ap_nominal, ap_calibrated, rp_nominal, rp_calibrated = (float(v) for v in found[0])
     assert ap_nominal >= 5 * ap_calibrated, (ap_nominal, ap_calibrated)
     assert abs(rp_nominal - rp_calibrated) <= 0.002, (rp_nominal, rp_calibrated)
+
+
+def test_markers_notebook_reaches_the_floor_and_its_files_give_the_report() -> None:
+    text = output_text(executed(NOTEBOOKS_DIR / "07_markers_and_trees.ipynb"))
+    each = [float(v) for v in re.findall(r"marker \w+: held-out RMS ([0-9.]+) mm", text)]
+    assert len(each) == 2 and max(each) < 1.3 * NOISE_FLOOR_MM, text
+    files, report = (
+        float(v) for v in re.search(r"from the files: ([0-9.]+) mm; report: ([0-9.]+) mm", text).groups()
+    )
+    assert abs(files - report) < 1e-5

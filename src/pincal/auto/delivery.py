@@ -44,7 +44,7 @@ def corrected_robot(cal: Calibration) -> Robot:
     with tempfile.TemporaryDirectory(prefix="pincal-") as folder:
         path = Path(folder) / "corrected.urdf"
         path.write_bytes(corrected_urdf(cal))
-        return load_robot(path, tip=cal.robot.tip, joints=cal.robot.joint_names)
+        return load_robot(path, tip=cal.robot.tip_spec, joints=cal.robot.joint_names)
 
 
 def on_robot(extension: AnyEffect, robot: Robot) -> AnyEffect:
@@ -152,6 +152,7 @@ def _score(loaded: CalibratedRobot, cal: Calibration, data: Dataset | None, full
         tool=loaded.tool,
         fit_tool=False,
         pairs=None,
+        marker_points=None if loaded.markers is None else np.array([p for _, p in loaded.markers.values()]),
     )
     ext = loaded.extension
     problem = Problem(model, meas, data, ext)

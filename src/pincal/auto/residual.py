@@ -36,7 +36,7 @@ import numpy as np
 from pincal.auto.balance import Delivered
 from pincal.data.dataset import Dataset
 from pincal.identify.calibration import Calibration
-from pincal.identify.folds import fold_indices
+from pincal.identify.folds import pose_folds
 
 #: Structure smaller than this share of the noise floor is not called unexplained (a noise
 #: figure a few per cent off must not turn a right model into a finding).
@@ -131,7 +131,7 @@ class HeldOut:
         self.rotation_noise = _rotation_noise(self.problem, self.residuals, cal)
         self.parts: list[np.ndarray] = [
             np.asarray(np.isin(poses, held).any(axis=1))
-            for held in fold_indices(len(data), min(folds, len(data)), seed)
+            for held in pose_folds(data, min(folds, len(data)), seed)
         ]
 
     def errors(self, residuals: np.ndarray, alone: np.ndarray | None = None) -> np.ndarray:
@@ -187,6 +187,8 @@ def noise_estimate(data: Dataset) -> tuple[float, int] | None:
     if data.points is None or len(data) < 2:
         return None
     key = np.round(data.q / SAME_POSE).astype(np.int64)
+    if data.marker is not None:  # several markers of one pose are not repeats
+        key = np.column_stack([key, data.marker])
     _, group, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
     group = group.reshape(-1)
     dof = int(np.sum(counts - 1))

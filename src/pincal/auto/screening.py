@@ -21,7 +21,7 @@ import numpy as np
 
 from pincal.data.dataset import Dataset
 from pincal.identify.calibration import Calibration
-from pincal.identify.folds import fold_indices
+from pincal.identify.folds import pose_folds
 from pincal.identify.identifiability import RCOND
 from pincal.identify.measurements import Problem
 from pincal.kinematics.effects import AnyEffect, combined
@@ -56,10 +56,9 @@ class Linearised:
         jac = problem.jacobian(base.theta, self.free)
         self.norms = np.where((n := np.linalg.norm(jac, axis=0)) > 0, n, 1.0)
         self.jac = jac / self.norms  # unit columns: the normal equations stay well scaled
-        n_poses = len(data)
         pose_of_row = self.kind.owners(problem)
         self.folds: list[tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]]] = []
-        for held in fold_indices(n_poses, folds, seed):
+        for held in pose_folds(data, folds, seed):
             in_held = np.isin(pose_of_row, held)
             test = np.asarray(in_held.any(axis=1))
             train = ~test

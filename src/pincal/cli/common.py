@@ -142,12 +142,21 @@ def fit_options(args: argparse.Namespace) -> dict[str, Any]:
     """Keyword arguments of :func:`pincal.calibrate` from the shared options."""
     return {
         "instrument_T_base": pin.SE3.Identity() if args.instrument_frame == "base" else None,
-        "tool": None if args.tool_point is None else args.tool_point * UNITS[args.units],
+        "tool": scaled_points(args.tool_point, UNITS[args.units]),
         "rotation_weight": args.rotation_weight,
         "loss": args.loss,
         "partial": args.partial,
         "point_distances": parse_point_distances(args.point_distance, args.units),
     }
+
+
+def scaled_points(points: Any, scale: float) -> Any:
+    """``--tool-point`` in metres: one point (3,), or a point per marker label, or None."""
+    if points is None:
+        return None
+    if isinstance(points, dict):
+        return {label: p * scale for label, p in points.items()}
+    return points * scale
 
 
 def warn(args: argparse.Namespace, text: str) -> None:

@@ -33,7 +33,7 @@ def run(args: argparse.Namespace) -> int:
     options = robot_options(args)
     description = {k: v for k, v in options.items() if k != "kinematics"}  # a YAML's base robot
     cal = load_calibration(args.calibration, nominal=args.robot, **description)
-    nominal = load_robot(args.robot, tip=cal.robot.tip, joints=cal.robot.joint_names, **options)
+    nominal = load_robot(args.robot, tip=cal.robot.tip_spec, joints=cal.robot.joint_names, **options)
     program: np.ndarray | Targets
     if is_recording(args.program):  # a program run and recorded: its static poses are the commands
         program = read_static_joints(args.program, nominal.joint_names, recording_options(args))

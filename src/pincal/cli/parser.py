@@ -14,7 +14,7 @@ from pincal.cli.plan_args import add_plan
 from pincal.cli.pull_options import add_pull_options
 from pincal.cli.recording_args import add_accuracy, add_extract, add_recording_options
 from pincal.cli.template import add_template
-from pincal.cli.values import mapping, name_list, parameters, payload, vector3
+from pincal.cli.values import mapping, name_list, parameters, payload, tool_points
 from pincal.errors import PincalError
 from pincal.options import (
     BUNDLED,
@@ -299,7 +299,10 @@ def _add_data_options(cmd: argparse.ArgumentParser) -> None:
         help="'base': the data is already in the robot's base frame",
     )
     cmd.add_argument(
-        "--tool-point", type=vector3, help="the measured point on the tip frame, X,Y,Z (data units)"
+        "--tool-point",
+        type=tool_points,
+        help="the measured point on the tip frame, X,Y,Z (data units); several markers: "
+        "LABEL=X,Y,Z;LABEL=X,Y,Z, each on its frame",
     )
     cmd.add_argument(
         "--payload", type=payload, metavar="MASS,X,Y,Z", help="load on the tip [kg; m in the tip frame]"

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from pincal.cli.recording_args import DEFAULTS
 from pincal.data.dataset import Dataset
+from pincal.data.marker_recordings import is_labelled, read_marker_recording
 from pincal.data.recording_reader import is_recording
 from pincal.data.recordings import Recording, RecordingOptions, read_recording
 from pincal.errors import DataError
@@ -37,9 +38,11 @@ def read_poses(path: Path, joints: tuple[str, ...] | None, args: argparse.Namesp
         raise DataError(
             f"{path}: a ROS recording holds radians and metres (REP 103): drop --degrees and --units"
         )
-    recording = read_recording(path, joints, recording_options(args))
+    options = recording_options(args)
+    reader = read_marker_recording if is_labelled(options.measure_topic) else read_recording
+    recording = reader(path, joints, options)
     args.__dict__.setdefault("warnings", []).extend(f"{path}: {w}" for w in recording.warnings)
-    print(f"{path}: {len(recording.data)} static poses, measured on {recording.source}")
+    print(f"{path}: {recording.data.n_poses} static poses, measured on {recording.source}")
     return recording
 
 

@@ -27,6 +27,22 @@ def vector3(text: str) -> Any:
     return values
 
 
+def tool_points(text: str) -> Any:
+    """``X,Y,Z`` (one point, every marker's) -> (3,); ``1=X,Y,Z;2=X,Y,Z`` (a point per marker
+    label) -> ``{label: (3,)}``."""
+    if "=" not in text:
+        return vector3(text)
+    out = {}
+    for part in text.split(";"):
+        label, sep, xyz = (p.strip() for p in part.partition("="))
+        if not sep or not label or label in out:
+            raise argparse.ArgumentTypeError(
+                f"expected X,Y,Z or LABEL=X,Y,Z;LABEL=X,Y,Z (one point per marker label), got {text!r}"
+            )
+        out[label] = vector3(xyz)
+    return out
+
+
 def vectors3(text: str) -> Any:
     """``X,Y,Z;X,Y,Z...`` -> (K, 3)."""
     import numpy as np

@@ -22,6 +22,7 @@ import numpy as np
 
 from pincal.data.csv_table import check_locked, content_lines, parse_header, quaternion_columns, read_columns
 from pincal.data.directions import move_directions
+from pincal.data.markers import check_seen, marker_labels, observations, read_marker_table, write_marker_csv
 from pincal.errors import DataError
 from pincal.files import STDIN, atomic_write, first_line
 from pincal.options import UNITS
@@ -50,6 +51,10 @@ class Dataset:
         directions: (N, n) each joint's direction of motion into each pose, read from the order
             of the whole source's rows (kept by :meth:`subset`), or None: from the order of ``q``
             (:meth:`moves`).
+        marker: (N,) for several markers per pose (:mod:`pincal.data.markers`), the index in
+            ``marker_names`` of the marker each row measured (a row is one marker seen in a pose;
+            the markers of one pose share its row number), else None.
+        marker_names: the markers' labels, in the order of their columns.
     """
 
     joint_names: tuple[str, ...]
@@ -62,6 +67,8 @@ class Dataset:
     point_rows: np.ndarray | None = None
     spread: np.ndarray | None = None
     directions: np.ndarray | None = None
+    marker: np.ndarray | None = None
+    marker_names: tuple[str, ...] = ()
 
     def moves(self) -> np.ndarray:
         """Each joint's direction of motion into each pose (N, n): +1 rising, -1 falling, 0 for
@@ -111,7 +118,7 @@ class Dataset:
     def subset(self, index: Sequence[int] | np.ndarray) -> Dataset:
         """The poses at ``index`` (row numbers are kept)."""
         idx = np.asarray(index)
-        per_pose = ("q", "points", "quaternions", "labels", "spread")
+        per_pose = ("q", "points", "quaternions", "labels", "spread", "marker")
         chosen = {name: getattr(self, name)[idx] for name in per_pose if getattr(self, name) is not None}
         return replace(self, rows=self.row_numbers[idx], directions=self.moves()[idx], **chosen)
 
@@ -121,6 +128,8 @@ class Dataset:
             raise DataError(f"fraction= must be a fraction between 0 and 1, got {fraction}")
         if seed < 0:
             raise DataError(f"seed= must be 0 or more, got {seed}")
+        if self.marker is not None:  # the markers of a pose stay together
+            return self._split_poses(fraction, seed)
         order = np.random.default_rng(seed).permutation(len(self))
         n_out = max(1, round(fraction * len(self)))
         if n_out >= len(self):
@@ -128,6 +137,49 @@ class Dataset:
                 f"fraction={fraction} of {len(self)} poses leaves none to fit: hold out a smaller fraction"
             )
         return self.subset(np.sort(order[n_out:])), self.subset(np.sort(order[:n_out]))
+
+    @property
+    def n_poses(self) -> int:
+        """Number of poses (several markers: of distinct row numbers; else of rows)."""
+        return len(self) if self.marker is None else len(np.unique(self.row_numbers))
+
+    def _split_poses(self, fraction: float, seed: int) -> tuple[Dataset, Dataset]:
+        """:meth:`split` of several markers per pose: whole poses (rows of one row number) held out."""
+        poses = np.unique(self.row_numbers)
+        order = np.random.default_rng(seed).permutation(len(poses))
+        n_out = max(1, round(fraction * len(poses)))
+        if n_out >= len(poses):
+            raise DataError(
+                f"fraction={fraction} of {len(poses)} poses leaves none to fit: hold out a smaller fraction"
+            )
+        out = np.isin(self.row_numbers, poses[order[:n_out]])
+        return self.subset(np.flatnonzero(~out)), self.subset(np.flatnonzero(out))
+
+
+def every_marker(data: Dataset, q: np.ndarray, quaternions: np.ndarray | None = None) -> Dataset:
+    """Poses ``q`` (P, n) with nothing measured (points zero), shaped as ``data``: with several
+    markers, one row per marker of each pose (all seen)."""
+    if data.marker is None:
+        return Dataset(data.joint_names, q, np.zeros((len(q), 3)), quaternions)
+    k = len(data.marker_names)
+    return Dataset(
+        data.joint_names,
+        np.repeat(q, k, axis=0),
+        np.zeros((len(q) * k, 3)),
+        rows=np.repeat(np.arange(1, len(q) + 1), k),
+        marker=np.tile(np.arange(k), len(q)),
+        marker_names=data.marker_names,
+    )
+
+
+def pose_table(data: Dataset) -> tuple[np.ndarray, np.ndarray]:
+    """Several markers per pose, one row per pose: joint values (P, n) and points (P, K, 3) [m]
+    (NaN where the marker was not seen), poses in the order of their row numbers."""
+    assert data.marker is not None
+    poses, first, at = np.unique(data.row_numbers, return_index=True, return_inverse=True)
+    points = np.full((len(poses), len(data.marker_names), 3), np.nan)
+    points[at, data.marker] = data.points
+    return data.q[first], points
 
 
 def csv_columns(path: str | Path) -> list[str]:
@@ -206,6 +258,9 @@ def read_csv(
     quat_order = quaternion_columns(path, header, quaternion_order)
     if measure == "points" or (measure is None and "point" in header and "x" not in header):
         return read_points_csv(path, joint_names, degrees, units, prismatic)
+    labels = marker_labels(header)
+    if labels and "x" not in header:
+        return read_markers_csv(path, joint_names, labels, degrees, units, prismatic)
     required = [*joint_names, "x", "y", "z"]
     still = [j for j in locked if j in header and j not in joint_names]
     wanted = [*required, *quat_order, *still]
@@ -244,6 +299,36 @@ def read_points_csv(
             raise DataError(f"{path}: data row {r + 1} has no point name in column 'point'")
         labels[r] = names.setdefault(name, len(names))
     return Dataset(tuple(joint_names), q, np.zeros((len(q), 3)), labels=labels, point_names=tuple(names))
+
+
+def read_markers_csv(
+    path: str | Path,
+    joint_names: Sequence[str],
+    labels: Sequence[str],
+    degrees: bool = False,
+    units: str = "m",
+    prismatic: Sequence[bool] | None = None,
+) -> Dataset:
+    """A CSV of several markers per pose (:mod:`pincal.data.markers`) as observations: one row per
+    marker seen, ``marker`` its index in ``labels``, ``rows`` its pose's data row.
+
+    Raises:
+        DataError: the file is missing or malformed, a marker never seen (a row with none seen
+            is left out).
+    """
+    values, points = read_marker_table(path, joint_names, labels)
+    check_seen(path, labels, points)
+    pose, marker = observations(points)
+    q = joint_values(values, degrees, units, prismatic)
+    return Dataset(
+        tuple(joint_names),
+        q[pose],
+        points[pose, marker] * UNITS[units],
+        rows=pose + 1,
+        marker=marker,
+        marker_names=tuple(labels),
+        directions=move_directions(q)[pose],  # from the file's rows: one per pose
+    )
 
 
 def joint_values(
@@ -293,6 +378,11 @@ def write_csv(
     n = len(data.joint_names)
     if prismatic is not None and len(prismatic) != n:
         raise DataError(f"prismatic= has {len(prismatic)} flags for {n} joints: give one per joint")
+    if data.marker is not None:  # several markers: a pose's markers on its row, xK,yK,zK
+        poses, points = pose_table(data)
+        q_file = joints_to_file(poses, degrees, units, prismatic)
+        write_marker_csv(path, data.joint_names, q_file, data.marker_names, points, units)
+        return
     q = joints_to_file(data.q, degrees, units, prismatic)
     scale = 1.0 / UNITS[units]
     fixed = data.labels is not None

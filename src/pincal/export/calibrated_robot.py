@@ -20,6 +20,7 @@ from pincal.export.urdf_writer import moved_origins, robot_source, sidecar_path
 from pincal.inputs import read_bytes
 from pincal.kinematics.chain import rigid_transform
 from pincal.kinematics.effects import AnyEffect
+from pincal.robot.marker_tips import marker_spec
 from pincal.robot.robots import Robot, load_robot
 
 #: Largest sidecar read [bytes] (one is a few kB).
@@ -38,6 +39,8 @@ class CalibratedRobot:
         effect: their parameters (units in ``extension.units``).
         instrument_T_base: the identified registration of the instrument, or None.
         urdf_alone: the written URDF alone (:attr:`alone`).
+        markers: several markers (sidecar ``markers``): each label's frame and point on it [m]
+            (the tool is then the identity), else None.
     """
 
     robot: Robot
@@ -55,6 +58,8 @@ class CalibratedRobot:
         if self.urdf_alone is not None:
             return self.urdf_alone
         return replace(self, extension=None, effect=np.zeros(0))
+
+    markers: dict[str, tuple[str, np.ndarray]] | None = None
 
     def reached(self, q: np.ndarray) -> np.ndarray:
         """Joint values (N, n) the robot reaches for commands ``q`` (N, n) [rad or m], the rows in
@@ -93,16 +98,24 @@ def _calibrated(robot: Robot, side: dict[str, Any]) -> CalibratedRobot:
     """The full model a sidecar describes on the written URDF's chain ``robot``, with the URDF
     alone as its :attr:`~CalibratedRobot.alone`."""
     measure = str(side.get("measure", "position"))
-    tool = rigid_transform(side["tip_T_tool"]["matrix"], "tip_T_tool")
-    alone = CalibratedRobot(robot, tool, measure, None, np.zeros(0), _registration(side["instrument_T_base"]))
+    markers = read_markers(side.get("markers"))
+    tool = _tool(side["tip_T_tool"], markers)
+    reg = _registration(side["instrument_T_base"])
+    alone = CalibratedRobot(robot, tool, measure, None, np.zeros(0), reg, markers=markers)
     full = side.get("complete")
     if full is not None:
         moves = {name: rigid_transform(m["matrix"], name) for name, m in full["joint_origins"].items()}
         robot = _moved(robot, moves)
-        tool = rigid_transform(full["tip_T_tool"]["matrix"], "tip_T_tool")
+        markers = read_markers(full.get("markers"))
+        tool = _tool(full["tip_T_tool"], markers)
     registration = _registration(full["instrument_T_base"] if full is not None else side["instrument_T_base"])
     ext, effect = read_effects(robot, side.get("extension"))
-    return CalibratedRobot(robot, tool, measure, ext, effect, registration, alone)
+    return CalibratedRobot(robot, tool, measure, ext, effect, registration, alone, markers)
+
+
+def _tool(entry: Any, markers: dict[str, tuple[str, np.ndarray]] | None) -> pin.SE3:
+    """A sidecar's ``tip_T_tool`` (the identity with several markers, where it is null)."""
+    return pin.SE3.Identity() if markers else rigid_transform(entry["matrix"], "tip_T_tool")
 
 
 def _moved(robot: Robot, moves: dict[str, pin.SE3]) -> Robot:
@@ -110,7 +123,7 @@ def _moved(robot: Robot, moves: dict[str, pin.SE3]) -> Robot:
     with tempfile.TemporaryDirectory(prefix="pincal-") as folder:
         path = Path(folder) / "full-model.urdf"
         path.write_bytes(moved_origins(robot_source(robot), moves))
-        return load_robot(path, tip=robot.tip, joints=robot.joint_names)
+        return load_robot(path, tip=robot.tip_spec, joints=robot.joint_names)
 
 
 def load_calibration(
@@ -156,7 +169,7 @@ def load_calibration(
     if not isinstance(side, dict):
         raise DataError(f"{path} is not a pincal calibration sidecar: not a JSON object")
     try:
-        chain = {"tip": side["tip"], "joints": side.get("joints")}
+        chain: dict[str, Any] = {"tip": sidecar_tip(side), "joints": side.get("joints")}
         if is_yaml(urdf):
             robot = load_robot(nominal or "", **chain, **{**robot_options, "kinematics": urdf})
         else:
@@ -166,3 +179,28 @@ def load_calibration(
         raise DataError(f"{path} is not a pincal calibration sidecar: bad or missing {exc}") from None
     except DataError as exc:  # issue 33: a payload the sidecar gives is checked as --payload is
         raise DataError(f"{path}: {exc}") from None
+
+
+def sidecar_tip(side: dict[str, Any]) -> str:
+    """The ``tip=`` that loads a sidecar's chain: its ``tip``, or with markers on several frames
+    each marker's (``1=FRAME_A,2=FRAME_B``)."""
+    markers = side.get("markers") or {}
+    frames = {str(k): str(m["frame"]) for k, m in dict(markers).items()}
+    return marker_spec(frames) if len(set(frames.values())) > 1 else str(side["tip"])
+
+
+def read_markers(entry: Any) -> dict[str, tuple[str, np.ndarray]] | None:
+    """The sidecar's ``markers`` (``{LABEL: {"frame", "point_m"}}``) as label -> (frame, point [m]).
+
+    Raises:
+        ValueError, KeyError, TypeError: not that shape, or a point that is not 3 finite numbers.
+    """
+    if entry is None:
+        return None
+    out = {}
+    for label, marker in dict(entry).items():
+        point = np.array([float(v) for v in marker["point_m"]])
+        if point.shape != (3,) or not np.all(np.isfinite(point)):
+            raise ValueError(f"markers: the point of marker {label} is not 3 finite numbers")
+        out[str(label)] = (str(marker["frame"]), point)
+    return out or None

@@ -8,11 +8,19 @@ points. Comment lines (``#``) above the header say the units the values must be 
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 from pincal.identify.kinds import get_kind
 from pincal.robot.robots import Robot
 
 
-def csv_template(robot: Robot, kind: str = "position", units: str = "m", degrees: bool = False) -> str:
+def csv_template(
+    robot: Robot,
+    kind: str = "position",
+    units: str = "m",
+    degrees: bool = False,
+    markers: Mapping[str, str] | None = None,
+) -> str:
     """The comment lines and header of a measurement CSV for ``robot``'s chain.
 
     Args:
@@ -20,6 +28,7 @@ def csv_template(robot: Robot, kind: str = "position", units: str = "m", degrees
         kind: ``position`` (x,y,z), ``pose`` (x,y,z and qw,qx,qy,qz) or ``points`` (a point column).
         units: ``m`` or ``mm``: the unit of x,y,z and of prismatic joint values.
         degrees: revolute joint values in degrees (else radians).
+        markers: several markers per pose: each label's frame (columns ``xK,yK,zK``), in order.
 
     Returns:
         The text of the file: ``#`` lines on units and options, then the header line.
@@ -35,7 +44,11 @@ def csv_template(robot: Robot, kind: str = "position", units: str = "m", degrees
         + (f"; prismatic joints ({', '.join(prismatic)}) in {length}" if prismatic else ""),
     ]
     measure = get_kind(kind)
-    if measure.fixed_points:
+    columns = measure.columns
+    if markers:
+        lines += marker_lines(markers, length)
+        columns = tuple(f"{a}{k}" for k in markers for a in "xyz")
+    elif measure.fixed_points:
         lines.append("# point: the name or number of the fixed point (socket) the tip is held at")
     else:
         lines.append(
@@ -51,5 +64,15 @@ def csv_template(robot: Robot, kind: str = "position", units: str = "m", degrees
             "#   (a datasheet's accuracy U at 2 sigma, per axis: U/2; for the 3-D point error, as an MPE: "
             "U/(2*sqrt(3)); or measure a few poses twice)",
         ]
-    lines.append(",".join((*robot.joint_names, *measure.columns)))
+    lines.append(",".join((*robot.joint_names, *columns)))
     return "\n".join(lines) + "\n"
+
+
+def marker_lines(markers: Mapping[str, str], length: str) -> list[str]:
+    """The comment lines that say what each marker's columns hold."""
+    each = "; ".join(f"{k} on {frame}" for k, frame in markers.items())
+    return [
+        f"# xK,yK,zK: the measured position of marker K, a point fixed on its frame ({each}), in the "
+        f"instrument's frame, in {length}",
+        "# leave a marker's three cells empty in a row where it was not seen",
+    ]

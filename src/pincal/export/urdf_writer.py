@@ -176,8 +176,8 @@ def complete(cal: Calibration) -> dict[str, Any] | None:
     return {
         "joint_origins": {name: {"matrix": m.homogeneous.tolist()} for name, m in moves.items()},
         "instrument_T_base": {"matrix": reg.homogeneous.tolist()} if cal.measurement.n_instrument else None,
-        "tip_T_tool": {"matrix": tool.homogeneous.tolist()},
-        "markers": None,
+        "tip_T_tool": None if cal.measurement.markers else {"matrix": tool.homogeneous.tolist()},
+        "markers": markers_entry(cal),
     }
 
 
@@ -272,7 +272,8 @@ def sidecar(cal: Calibration, urdf_name: str) -> dict[str, Any]:
         "instrument_T_base_note": "identified"
         if fitted
         else "not identified (given, or distance or fixed-point data)",
-        "tip_T_tool": pose(tool),
+        "tip_T_tool": None if cal.measurement.markers else pose(tool),
+        "markers": markers_entry(cal),
         "extension": effects_json(full.extension, full.effect_params),
         "complete": complete(full),
         "tool_note": (
@@ -281,6 +282,20 @@ def sidecar(cal: Calibration, urdf_name: str) -> dict[str, Any]:
             "(the tip frame's orientation, other tool frames) are not determined by the data"
         ),
     }
+
+
+def markers_entry(cal: Calibration) -> dict[str, Any] | None:
+    """The sidecar's ``markers``: ``{LABEL: {"frame", "point_m"}}`` of several markers, else None."""
+    points = cal.markers()
+    if not points:
+        return None
+    frames = marker_frames(cal.robot, tuple(points))
+    return {k: {"frame": frames[k], "point_m": [float(v) for v in p]} for k, p in points.items()}
+
+
+def marker_frames(robot: Robot, labels: tuple[str, ...]) -> dict[str, str]:
+    """The frame each marker is on (``tip=1=FRAME_A,2=FRAME_B``; else the tip for every marker)."""
+    return {k: robot.marker_frames.get(k, robot.tip) for k in labels}
 
 
 def sidecar_path(urdf: str | Path) -> Path:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pinocchio as pin
@@ -10,7 +10,7 @@ import pinocchio as pin
 from pincal.data.dataset import Dataset
 from pincal.identify.evaluation import ErrorStats
 from pincal.identify.identifiability import Identifiability
-from pincal.identify.measurements import Measurement, Problem, unpack
+from pincal.identify.measurements import Measurement, Problem, marker_points, unpack
 from pincal.identify.records import Balance, Choice, Guard, Judgement, PriorChoice
 from pincal.kinematics.chain import Chain, forward
 from pincal.kinematics.effects import AnyEffect
@@ -50,6 +50,8 @@ class Calibration:
             alone stays the best URDF (:mod:`pincal.auto.balance`), else None.
         prior: the pull toward the URDF: its weight and how it was chosen (:mod:`pincal.identify.prior`).
         guard: the fit judged against the nominal model on the fitted poses (:mod:`pincal.identify.guard`).
+        train_markers, test_markers: several markers: the errors after of each marker on the
+            fitted and held-out poses, by label (else empty).
         plausibility: whether the result can describe a real arm (:func:`pincal.calibrate` judges
             it, :mod:`pincal.plausibility.judge`); the writers refuse an implausible one.
         urdf_fit: when the full model (this calibration: geometry and effects fitted together)
@@ -93,6 +95,9 @@ class Calibration:
         """The fit the corrected URDF holds (:attr:`urdf_fit`, or this calibration)."""
         return self.urdf_fit if self.urdf_fit is not None else self
 
+    train_markers: dict[str, ErrorStats] = field(default_factory=dict)
+    test_markers: dict[str, ErrorStats] = field(default_factory=dict)
+
     @property
     def robot(self) -> Robot:
         """The calibrated robot (nominal description)."""
@@ -122,6 +127,14 @@ class Calibration:
         n = self.model.n_params + (self.extension.n_params if self.extension else 0)
         x, reg, tool = unpack(n, self.measurement, self.theta)
         return x[: self.model.n_params], reg, tool
+
+    def markers(self) -> dict[str, np.ndarray]:
+        """Several markers: each marker's point on its frame [m] by label, as identified (else empty)."""
+        m = self.measurement
+        if not m.markers:
+            return {}
+        n = self.model.n_params + (self.extension.n_params if self.extension else 0)
+        return dict(zip(m.markers, marker_points(n, m, self.theta)))
 
     def base_T_tip(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Calibrated tip rotations (N, 3, 3) and positions (N, 3) [m] for commanded joint values

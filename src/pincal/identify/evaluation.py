@@ -143,6 +143,27 @@ def evaluate(
     return ErrorStats.of(*pose_errors(model, measurement, theta, data, extension))
 
 
+def marker_stats(
+    model: Model,
+    measurement: Measurement,
+    theta: np.ndarray,
+    data: Dataset | None,
+    extension: AnyEffect | None = None,
+) -> dict[str, ErrorStats]:
+    """Several markers: :func:`evaluate` of each marker's rows, by label (distance data: the pairs
+    of its own points); else, or without data, empty."""
+    if data is None or data.marker is None:
+        return {}
+    out = {}
+    for k, label in enumerate(data.marker_names):
+        mine = np.flatnonzero(data.marker == k)
+        if mine.size > (1 if measurement.measure.by_pairs else 0):
+            out[label] = evaluate(
+                model, replace(measurement, pairs=None), theta, data.subset(mine), extension
+            )
+    return out
+
+
 #: A placement is named in the summary when its rows scatter this many times the other
 #: placements' median after calibration...
 SCATTER_RATIO = 2.0

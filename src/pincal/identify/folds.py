@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from pincal.data.dataset import Dataset
 from pincal.identify.measurements import Problem
 
-__all__ = ["fold_indices", "held_out_rows"]
+__all__ = ["fold_indices", "held_out_rows", "pose_folds"]
 
 
 def fold_indices(n: int, folds: int, seed: int = 0) -> list[np.ndarray]:
@@ -15,11 +16,23 @@ def fold_indices(n: int, folds: int, seed: int = 0) -> list[np.ndarray]:
     return [np.sort(f) for f in np.array_split(order, folds)]
 
 
+def pose_folds(data: Dataset, folds: int | None, seed: int = 0) -> list[np.ndarray]:
+    """Held-out row sets of ``data``: :func:`fold_indices` of its poses (``folds`` None: each pose
+    alone); with several markers per pose, a pose's rows (one per marker seen) go together."""
+    if data.marker is None:
+        n = len(data)
+        return [np.array([i]) for i in range(n)] if folds is None else fold_indices(n, folds, seed)
+    poses, at = np.unique(data.row_numbers, return_inverse=True)
+    n = len(poses)
+    sets = [np.array([i]) for i in range(n)] if folds is None else fold_indices(n, min(folds, n), seed)
+    return [np.flatnonzero(np.isin(at, s)) for s in sets]
+
+
 def held_out_rows(problem: Problem, folds: int | None, seed: int) -> list[np.ndarray]:
     """Residual rows of each held-out group (a pose, or a fold of poses; for distance data, the
     rows of every pair with a pose in it): linearised cross-validation's groups."""
     n_poses = len(problem.data)
-    held = [np.array([i]) for i in range(n_poses)] if folds is None else fold_indices(n_poses, folds, seed)
+    held = pose_folds(problem.data, folds, seed)
     if problem.measurement.measure.by_pairs:  # the pairs the data has (all, Gao's or given)
         groups = [np.flatnonzero(np.isin(problem.pairs, h).any(axis=1)) for h in held]
         return [g for g in groups if len(g)]

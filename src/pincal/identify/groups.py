@@ -13,7 +13,12 @@ MODEL_WORDS = {
     "offsets": "joint offset",
 }
 #: What the unknowns beside the model's are, by the first part of their names.
-GROUP_WORDS = {"instrument": "instrument registration", "tool": "tool", "point": "fixed-point position"}
+GROUP_WORDS = {
+    "instrument": "instrument registration",
+    "tool": "tool",
+    "point": "fixed-point position",
+    "marker": "marker points",
+}
 
 
 def parameter_groups(cal: Calibration) -> list[tuple[str, int, int]]:

@@ -17,7 +17,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import scipy.linalg
 
-from pincal.data.dataset import Dataset
+from pincal.data.dataset import every_marker
 from pincal.errors import IdentifiabilityError
 from pincal.identify.measurements import Problem
 from pincal.identify.registration import quaternions
@@ -177,7 +177,7 @@ def check_rank(
     n_ref = max(60, 2 * problem.n_params)
     q_ref = robot.random_configurations(n_ref, np.random.default_rng(0), margin=0.05)
     quats = np.tile([1.0, 0.0, 0.0, 0.0], (n_ref, 1)) if data.has_orientation else None
-    blank = Dataset(data.joint_names, q_ref, np.zeros((n_ref, 3)), quats)
+    blank = every_marker(data, q_ref, quats)
     meas = replace(problem.measurement, pairs=None)
     points, rotations = Problem(problem.model, meas, blank, problem.extension).predict(theta)
     exact = replace(blank, points=points, quaternions=None if quats is None else quaternions(rotations))

@@ -23,7 +23,7 @@ from pincal.data.pairs import all_pairs
 from pincal.errors import DataError, IdentifiabilityError
 from pincal.identify.calibration import Calibration
 from pincal.identify.evaluation import ErrorStats, pose_errors
-from pincal.identify.folds import fold_indices
+from pincal.identify.folds import pose_folds
 from pincal.identify.measurements import Problem
 from pincal.kinematics.models import Model
 from pincal.robot.robots import Robot
@@ -109,7 +109,7 @@ def cross_validate_with(
     """
     if not 2 <= folds <= len(data):
         raise DataError(f"cross-validation needs between 2 and {len(data)} folds (one per pose), got {folds}")
-    parts = fold_indices(len(data), folds, seed)
+    parts = pose_folds(data, folds, seed)
 
     def one_fold(k: int) -> tuple[Calibration, list[np.ndarray]]:
         kept = np.setdiff1d(np.arange(len(data)), parts[k])

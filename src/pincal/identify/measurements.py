@@ -24,7 +24,7 @@ kind's rows are its class's (:mod:`pincal.identify.kinds`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -32,10 +32,11 @@ import pinocchio as pin
 
 from pincal.data.dataset import Dataset
 from pincal.data.pairs import all_pairs
+from pincal.errors import DataError
 from pincal.identify import chunked
 from pincal.identify.fixed_points import PointDistance, check_distances, point_index, point_means
 from pincal.identify.kinds import MeasurementKind, get_kind
-from pincal.kinematics.chain import Chain, Frames, forward, stacked_dot, twist_columns
+from pincal.kinematics.chain import Frames, forward, stacked_dot, twist_columns
 from pincal.kinematics.effects import AnyEffect
 from pincal.kinematics.models import Model
 from pincal.options import ROTATION_WEIGHT
@@ -55,6 +56,11 @@ class Measurement:
         pairs: (m, 2) pose pairs for ``distance`` (default: all pairs).
         points: the fixed points whose positions are unknowns (``points``).
         point_distances: known distances between them (``points``), [m].
+        markers: several markers per pose (:mod:`pincal.data.markers`): their labels; each is a
+            point on the tip frame (3 unknowns [m] each, in the tool's place), else empty.
+        marker_points: the markers' points (K, 3) [m] on the tip frame, given or initial guesses
+            (None: at the tip frame's origin).
+        marker_tips: a tree's frame of each marker (an index into the robot's ``tips``), else empty.
     """
 
     kind: str = "position"
@@ -66,6 +72,9 @@ class Measurement:
     pairs: np.ndarray | None = None
     points: tuple[str, ...] = ()
     point_distances: tuple[PointDistance, ...] = ()
+    markers: tuple[str, ...] = ()
+    marker_points: np.ndarray | None = None
+    marker_tips: tuple[int, ...] = ()
 
     def __post_init__(self) -> None:
         get_kind(self.kind)  # a DataError naming the kinds if there is none of that name
@@ -88,8 +97,16 @@ class Measurement:
 
     @property
     def n_tool(self) -> int:
-        """Number of tool unknowns."""
+        """Number of tool unknowns (several markers: 3 per marker)."""
+        if self.markers:
+            return 3 * len(self.markers) if self.fit_tool else 0
         return self.measure.tool_dof if self.fit_tool else 0
+
+    def points_on_tip(self) -> np.ndarray:
+        """The markers' given or initial points (K, 3) [m] on the tip frame."""
+        if self.marker_points is None:
+            return np.zeros((len(self.markers), 3))
+        return np.asarray(self.marker_points, dtype=float).reshape(len(self.markers), 3)
 
     def names(self) -> tuple[list[str], list[str]]:
         """Names and units of the measurement unknowns."""
@@ -100,7 +117,10 @@ class Measurement:
         if self.n_points:
             names += [f"point.{p}.{c}" for p in self.points for c in "xyz"]
             units += ["m"] * self.n_points
-        if self.n_tool == 3:
+        if self.markers and self.n_tool:
+            names += [f"marker.{k}.{c}" for k in self.markers for c in "xyz"]
+            units += ["m"] * self.n_tool
+        elif self.n_tool == 3:
             names += ["tool.x", "tool.y", "tool.z"]
             units += ["m"] * 3
         elif self.n_tool == 6:
@@ -119,11 +139,53 @@ def unpack(n_model: int, measurement: Measurement, theta: np.ndarray) -> tuple[n
         k += 6
     k += measurement.n_points
     tool = measurement.tool
+    if measurement.markers:  # several markers: their points are :func:`marker_points`'
+        return x, reg, tool
     if measurement.n_tool == 3:
         tool = pin.SE3(tool.rotation, theta[k : k + 3].copy())
     elif measurement.n_tool == 6:
         tool = tool * pin.exp6(pin.Motion(theta[k : k + 6]))
     return x, reg, tool
+
+
+def marker_points(n_model: int, measurement: Measurement, theta: np.ndarray) -> np.ndarray:
+    """The markers' points (K, 3) [m] on their frames for the unknowns θ (several markers)."""
+    if not measurement.n_tool:
+        return measurement.points_on_tip()
+    k = n_model + measurement.n_instrument + measurement.n_points
+    return theta[k : k + measurement.n_tool].reshape(-1, 3).copy()
+
+
+def marker_arms(rotations: np.ndarray, points: np.ndarray, marker: np.ndarray) -> np.ndarray:
+    """Each row's marker point in base axes (N, 3) [m]: ``R_tip · point[marker]``."""
+    return np.einsum("nij,nj->ni", rotations, points[marker])
+
+
+def marker_columns(rotations: np.ndarray, marker: np.ndarray, cols: np.ndarray, n_markers: int) -> np.ndarray:
+    """The target's velocity (N, 3, c) for the markers' point columns ``cols`` (0-based among
+    their 3K): a marker's point moves only its own rows, along the tip frame's axes."""
+    out = np.zeros((len(marker), 3, len(cols)))
+    for c, col in enumerate(cols):
+        k, axis = divmod(int(col), 3)
+        if k < n_markers:
+            out[:, :, c] = rotations[:, :, axis] * (marker == k)[:, None]
+    return out
+
+
+def branch_only(frames: Frames, k: int, v: np.ndarray, w: np.ndarray | None) -> tuple[np.ndarray, Any]:
+    """Columns of position ``k`` kept only on the rows whose tip it moves (a tree), else as given."""
+    mask = frames.acting(k)
+    if mask is None:
+        return v, w
+    return v * mask, None if w is None else w * mask
+
+
+def held_markers(measurement: Measurement, tool: pin.SE3) -> Measurement:
+    """The measurement with its tool held as ``tool`` (every marker at its point, for several)."""
+    held = replace(measurement, tool=tool, fit_tool=False)
+    if measurement.markers and measurement.fit_tool:  # given points stay as given
+        held = replace(held, marker_points=np.tile(tool.translation, (len(measurement.markers), 1)))
+    return held
 
 
 class Problem:
@@ -133,6 +195,7 @@ class Problem:
         self, model: Model, measurement: Measurement, data: Dataset, extension: AnyEffect | None = None
     ) -> None:
         measurement.measure.check(data)
+        check_markers(measurement, data)
         self.model = model
         self.measurement = measurement
         self.data = data
@@ -177,8 +240,10 @@ class Problem:
     def initial_theta(self) -> np.ndarray:
         """θ for the nominal model and the measurement model's initial registration and tool."""
         m, theta = self.measurement, np.zeros(self.n_params)
-        if m.n_tool == 3:
-            k = self.n_model + m.n_instrument + m.n_points
+        k = self.n_model + m.n_instrument + m.n_points
+        if m.markers and m.n_tool:
+            theta[k : k + m.n_tool] = m.points_on_tip().reshape(-1)
+        elif m.n_tool == 3:
             theta[k : k + 3] = m.tool.translation
         if m.n_points and self.point_index is not None:  # each point at its rows' mean tip
             means = point_means(self.target_frames(theta)[2], self.point_index, len(m.points))
@@ -218,12 +283,26 @@ class Problem:
         x, reg, tool = self.split(theta)
         chain = self.model.chain(x[: self.model.n_params])
         if in_instrument:
-            chain = Chain((reg * chain.placements[0], *chain.placements[1:]), chain.axes)
-        frames = forward(chain, self.reached(theta))
-        rot = stacked_dot(frames.tip_rotation, tool.rotation)
-        pos = frames.tip_translation + stacked_dot(frames.tip_rotation, tool.translation[:, None])[:, :, 0]
+            chain = chain.registered(reg)
+        frames = forward(chain, self.reached(theta), self.row_tips())
+        if self.measurement.markers and self.data.marker is not None:
+            rot = frames.tip_rotation
+            points = marker_points(self.n_model, self.measurement, theta)
+            pos = frames.tip_translation + marker_arms(rot, points, self.data.marker)
+        else:
+            rot = stacked_dot(frames.tip_rotation, tool.rotation)
+            pos = (
+                frames.tip_translation + stacked_dot(frames.tip_rotation, tool.translation[:, None])[:, :, 0]
+            )
         self._frames = (key, (frames, rot, pos))
         return frames, rot, pos
+
+    def row_tips(self) -> np.ndarray | None:
+        """A tree's tip of each row (the frame its marker is on), else None."""
+        tips = self.measurement.marker_tips
+        if not tips or self.data.marker is None:
+            return None
+        return np.asarray(tips, dtype=int)[self.data.marker]
 
     def predict(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Predicted target positions (N, 3) [m] and rotations (N, 3, 3) in the instrument frame."""
@@ -235,7 +314,9 @@ class Problem:
         frames, _, pos = self.target_frames(theta, in_instrument=True)
         k = 2 * joint + 1
         zeta = self.model.chain(theta[: self.model.n_params]).axes[joint][:, None]
-        return twist_columns(frames.rotations[k], frames.translations[k], zeta, pos)[0][:, :, 0]
+        moved = twist_columns(frames.rotations[k], frames.translations[k], zeta, pos)[0][:, :, 0]
+        mask = frames.acting(k)
+        return moved if mask is None else moved * mask[:, :, 0]
 
     def residuals(self, theta: np.ndarray) -> np.ndarray:
         """Stacked residuals [m] (see the module docstring)."""
@@ -270,8 +351,12 @@ class Problem:
                 return v, None
             return v, stacked_dot(to_log @ k_rot, zeta[3:])
 
-        def add(k_rot: np.ndarray, k_pos: np.ndarray, zeta: np.ndarray, where: np.ndarray) -> None:
+        def add(
+            k_rot: np.ndarray, k_pos: np.ndarray, zeta: np.ndarray, where: np.ndarray, mask: Any = None
+        ) -> None:
             v, w = columns(k_rot, k_pos, zeta)
+            if mask is not None:  # a tree: the position moves only the rows of its branches
+                v, w = v * mask, None if w is None else w * mask
             at: slice | np.ndarray = where  # a slice when it can be: fancy indexing costs more
             if where[-1] - where[0] == len(where) - 1:
                 at = slice(int(where[0]), int(where[-1]) + 1)
@@ -285,7 +370,8 @@ class Problem:
             for k in range(twists.shape[0]):
                 acting = np.flatnonzero(np.any(twists[k] != 0.0, axis=0))
                 if acting.size:
-                    add(frames.rotations[k], frames.translations[k], twists[k][:, acting], geo[acting])
+                    k_rot, k_pos = frames.rotations[k], frames.translations[k]
+                    add(k_rot, k_pos, twists[k][:, acting], geo[acting], frames.acting(k))
         ext = np.flatnonzero((cols >= n_geo) & (cols < self.n_model))
         joints = self.param_joints[cols[ext] - n_geo]
         for index in np.unique(joints):  # each moved joint's column, times each pose's regressor
@@ -293,6 +379,7 @@ class Problem:
             k = 2 * int(index) + 1
             axis = self.model.chain(theta[:n_geo]).axes[index]  # in the model's joint frame
             v, w = columns(frames.rotations[k], frames.translations[k], axis[:, None] * np.ones(here.size))
+            v, w = branch_only(frames, k, v, w)
             regressors = self.regressors[:, cols[here] - n_geo][:, None, :]
             jac_v[:, :, here] = v * regressors
             if w is not None:
@@ -307,7 +394,10 @@ class Problem:
             k += 6
         k += m.n_points  # a point's columns are not the target's: see fixed_points.points_rows
         here = np.flatnonzero(cols >= k)
-        if here.size and m.n_tool == 3:
+        if here.size and m.markers and self.data.marker is not None:
+            rotations = frames.tip_rotation
+            jac_v[:, :, here] = marker_columns(rotations, self.data.marker, cols[here] - k, len(m.markers))
+        elif here.size and m.n_tool == 3:
             jac_v[:, :, here] = frames.tip_rotation[:, :, cols[here] - k]
         elif here.size and m.n_tool == 6:
             add(rot, pos, pin.Jexp6(pin.Motion(theta[k : k + 6]))[:, cols[here] - k], here)
@@ -318,3 +408,19 @@ class Problem:
         if chunked.is_large(self):
             return chunked.evaluate(self, theta, cols)
         return self.measurement.measure.rows(self, theta, cols)
+
+
+def check_markers(measurement: Measurement, data: Dataset) -> None:
+    """Refuse several markers' measurement on data of one marker per pose, and the reverse.
+
+    Raises:
+        DataError: the data and the measurement disagree on the markers.
+    """
+    if measurement.markers and data.marker is None:
+        raise DataError("the calibration has several markers: give data with xK,yK,zK columns per marker")
+    if data.marker is not None and tuple(data.marker_names) != tuple(measurement.markers):
+        given = ", ".join(data.marker_names)
+        raise DataError(
+            f"the data's markers ({given}) are not the calibration's ({', '.join(measurement.markers)}): "
+            "give data with the same xK,yK,zK columns"
+        )

@@ -48,8 +48,11 @@ def initial_measurement(robot: Robot, data: Dataset, measurement: Measurement) -
     if measurement.measure.fixed_points:  # no instrument; the points start at their rows' means
         return measurement
     data = sample_poses(data)  # a first guess: a random subset of many poses will do (issue 33)
-    frames = forward(Chain.nominal(robot), data.q)
+    tips = np.asarray(measurement.marker_tips, dtype=int)[data.marker] if measurement.marker_tips else None
+    frames = forward(Chain.nominal(robot), data.q, tips)
     rot, pos = frames.tip_rotation, frames.tip_translation
+    if measurement.markers:
+        return _initial_markers(data, rot, pos, measurement)
     reg, tool = measurement.instrument_T_base, measurement.tool
     point = tool.translation.copy()
     fit_reg = measurement.fit_instrument
@@ -65,3 +68,23 @@ def initial_measurement(robot: Robot, data: Dataset, measurement: Measurement) -
         rel = np.transpose(reg.rotation @ rot, (0, 2, 1)) @ data.rotations()
         tool_rot = project_so3(rel.sum(axis=0))
     return replace(measurement, instrument_T_base=reg, tool=pin.SE3(tool_rot, point))
+
+
+def _initial_markers(
+    data: Dataset, rot: np.ndarray, pos: np.ndarray, measurement: Measurement
+) -> Measurement:
+    """:func:`initial_measurement` of several markers: the registration (Kabsch) alternating with
+    each marker's point (linear least squares over its rows)."""
+    assert data.marker is not None
+    reg, points = measurement.instrument_T_base, measurement.points_on_tip()
+    fit_reg = measurement.fit_instrument
+    for _ in range(8 if fit_reg and measurement.fit_tool else 1):
+        if fit_reg:
+            reg = kabsch(pos + np.einsum("nij,nj->ni", rot, points[data.marker]), data.points)
+        if measurement.fit_tool:
+            for k in range(len(points)):
+                mine = data.marker == k
+                lhs = (reg.rotation @ rot[mine]).reshape(-1, 3)
+                rhs = (data.points[mine] - pos[mine] @ reg.rotation.T - reg.translation).reshape(-1)
+                points[k] = np.linalg.lstsq(lhs, rhs, rcond=None)[0]
+    return replace(measurement, instrument_T_base=reg, marker_points=points)

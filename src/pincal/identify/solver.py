@@ -32,12 +32,12 @@ from pincal.data.pairs import gao_pairs
 from pincal.errors import DataError, IdentifiabilityError
 from pincal.identify import chunked
 from pincal.identify.calibration import Calibration
-from pincal.identify.evaluation import evaluate
+from pincal.identify.evaluation import evaluate, marker_stats
 from pincal.identify.fixed_points import PointDistance, blind_jacobian, gauge_reasons, placed_distances
 from pincal.identify.identifiability import RCOND, Identifiability, analyse, check_rank, parameter_scale
 from pincal.identify.kinds import check_options, get_kind
 from pincal.identify.lm import OptimizeResult, levenberg_marquardt
-from pincal.identify.measurements import ROTATION_WEIGHT, Measurement, Problem
+from pincal.identify.measurements import ROTATION_WEIGHT, Measurement, Problem, held_markers
 from pincal.identify.outliers import find_outliers
 from pincal.identify.registration import initial_measurement
 from pincal.identify.uncertainty import posterior_std
@@ -123,7 +123,7 @@ def set_up(
     measure: str | None = None,
     *,
     instrument_T_base: pin.SE3 | None = None,
-    tool: pin.SE3 | np.ndarray | None = None,
+    tool: pin.SE3 | np.ndarray | dict[str, np.ndarray] | None = None,
     rotation_weight: float = ROTATION_WEIGHT,
     pairs: str | np.ndarray = "all",
     point_distances: tuple[PointDistance, ...] = (),
@@ -138,10 +138,13 @@ def set_up(
     if tuple(data.joint_names) != robot.joint_names:
         raise DataError(f"the data's joints {data.joint_names} are not the chain's {robot.joint_names}")
     mdl = make_model(model, robot) if isinstance(model, str) else model
+    one_point = (
+        tool is None or isinstance(tool, pin.SE3) or (not isinstance(tool, dict) and np.size(tool) == 3)
+    )
     tool_se3 = (
         tool
         if isinstance(tool, pin.SE3)
-        else pin.SE3(np.eye(3), np.zeros(3) if tool is None else np.asarray(tool, float))
+        else pin.SE3(np.eye(3), np.zeros(3) if tool is None or not one_point else np.asarray(tool, float))
     )
     kind = measure or data.measured
     check_options(get_kind(kind), data, pairs, point_distances)
@@ -155,9 +158,41 @@ def set_up(
         pairs=_pairs(pairs, len(data)),
         points=data.point_names if get_kind(kind).fixed_points else (),
         point_distances=placed_distances(data.point_names, tuple(point_distances)),
+        **marker_setup(data, tool, robot),
     )
     problem = Problem(mdl, initial_measurement(robot, data, measurement), data, extension)
     return Setup(problem, natural_scale(problem), tool_se3)
+
+
+def marker_setup(data: Dataset, tool: Any, robot: Robot) -> dict[str, Any]:
+    """The :class:`Measurement` fields of several markers per pose: their labels, their frames on
+    a tree and, given, their points (``tool``: one point for all, (K, 3), or ``{label: (3,)}`` [m]).
+
+    Raises:
+        DataError: the robot is a tree and the data has one marker per pose (``x,y,z``).
+    """
+    if data.marker is None:
+        if robot.is_tree:
+            raise DataError(
+                f"tip= puts markers on {', '.join(robot.tips)}, and the data has one marker (x,y,z): "
+                "give xK,yK,zK columns per marker, with the labels tip= names"
+            )
+        return {}
+    k = len(data.marker_names)
+    given = None
+    if isinstance(tool, dict):  # a point per marker label
+        missing = [label for label in data.marker_names if label not in tool]
+        if missing or set(tool) - set(data.marker_names):
+            raise DataError(
+                f"tool= gives points for markers {', '.join(tool)}, the data has "
+                f"{', '.join(data.marker_names)}: give a point for each of the data's markers"
+            )
+        given = np.array([np.asarray(tool[label], dtype=float) for label in data.marker_names])
+    elif tool is not None:
+        point = tool.translation if isinstance(tool, pin.SE3) else np.asarray(tool, dtype=float)
+        given = np.tile(point, (k, 1)) if point.size == 3 else point.reshape(k, 3)
+    tips = tuple(robot.marker_tip(label) for label in data.marker_names) if robot.is_tree else ()
+    return {"markers": data.marker_names, "marker_points": given, "marker_tips": tips}
 
 
 def natural_scale(problem: Problem) -> np.ndarray:
@@ -311,7 +346,7 @@ def assess(
     problem, mdl, ext, data = setup.problem, setup.model, setup.problem.extension, setup.data
     n_model, measurement = problem.n_model, problem.measurement
     # The URDF as it is: nominal tool, only the registration fitted.
-    urdf_meas = replace(measurement, tool=setup.tool, fit_tool=False)
+    urdf_meas = held_markers(measurement, setup.tool)
     urdf_problem = Problem(mdl, urdf_meas, data, ext)
     urdf_theta = urdf_problem.initial_theta()
     if urdf_meas.n_instrument:
@@ -343,8 +378,10 @@ def assess(
         test_urdf=stats(replace(urdf_meas, pairs=None), urdf_theta, test),
         urdf_measurement=urdf_meas,
         urdf_theta=urdf_theta,
-        n_poses=len(data),
+        n_poses=data.n_poses,
         n_evaluations=int(result.njev or result.nfev),
         message=str(result.message),
         converged=bool(result.get("success", True)),
+        train_markers=marker_stats(mdl, measurement, theta, data, ext),
+        test_markers=marker_stats(mdl, held_out, theta, test, ext),
     )

@@ -31,41 +31,88 @@ from pincal.robot.robots import Robot
 class Chain:
     """A chain's constant placements and joint twists.
 
+    A tree (several markers on the branches of a robot, issue 41) has ``parents`` and
+    ``tip_joints``: joint ``j``'s placement ``C_j`` is then in the frame after its parent joint's
+    motion (the base for -1), and ``placements`` ends with one placement per tip frame, each on
+    the joint ``tip_joints`` names. A chain leaves both empty (each joint's parent the previous
+    one, one tip on the last joint).
+
     Attributes:
-        placements: ``C_0 ... C_n`` as SE3.
+        placements: ``C_0 ... C_n`` as SE3 (a tree: ``C_0 ... C_{n-1}``, then each tip's).
         axes: joint twists ``S_j`` (n, 6) in the frame after ``C_{j-1}``, order (v, ω).
+        parents: a tree's parent joint of each joint (-1: the base), else empty.
+        tip_joints: a tree's joint each tip frame hangs on, else empty.
     """
 
     placements: tuple[pin.SE3, ...]
     axes: np.ndarray
+    parents: tuple[int, ...] = ()
+    tip_joints: tuple[int, ...] = ()
 
     @classmethod
     def nominal(cls, robot: Robot) -> Chain:
         """The chain of the robot's URDF joint origins and tip placement."""
-        return cls(robot.placements, robot.axes)
+        return cls(robot.placements, robot.axes, robot.parents, robot.tip_joints)
+
+    def with_joints(self, placements: list[pin.SE3] | tuple[pin.SE3, ...]) -> Chain:
+        """The same chain (axes, tips, tree) with the joints' placements ``C_0 ... C_{n-1}`` replaced."""
+        n = self.axes.shape[0]
+        return Chain((*placements[:n], *self.placements[n:]), self.axes, self.parents, self.tip_joints)
+
+    def registered(self, reg: pin.SE3) -> Chain:
+        """The chain seen from an instrument at ``reg`` (``instrument_T_base``): every joint on
+        the base premultiplied."""
+        roots = [0] if not self.parents else [j for j, p in enumerate(self.parents) if p < 0]
+        placements = list(self.placements)
+        for j in roots:
+            placements[j] = reg * placements[j]
+        return Chain(tuple(placements), self.axes, self.parents, self.tip_joints)
 
 
 @dataclass(frozen=True)
 class Frames:
     """World frames of every chain position, for a batch of poses.
 
+    A tree's frames (:func:`forward` with ``row_tips``) hold a position per tip after the
+    joints' (``2n + t``); each pose's tip is its own (``row_tips``), and ``reach`` says which
+    positions move it (the joints between the base and its tip, and the tip itself).
+
     Attributes:
-        rotations: (2n + 1, N, 3, 3) ``base_R_position``.
+        rotations: (2n + 1, N, 3, 3) ``base_R_position`` (a tree: (2n + T, N, 3, 3)).
         translations: (2n + 1, N, 3) ``base_p_position`` [m].
+        row_tips: a tree's tip of each pose (N,), else None (the last position).
+        reach: a tree's (2n + T, N) whether position k moves pose i's tip, else None (all do).
+        first_tip: a tree's position of its first tip (2n).
     """
 
     rotations: np.ndarray
     translations: np.ndarray
+    row_tips: np.ndarray | None = None
+    reach: np.ndarray | None = None
+    first_tip: int = 0
 
     @property
     def tip_rotation(self) -> np.ndarray:
         """``base_R_tip`` (N, 3, 3)."""
-        return self.rotations[-1]
+        if self.row_tips is None:
+            return self.rotations[-1]
+        return self.rotations[self._tip_positions, np.arange(len(self.row_tips))]
 
     @property
     def tip_translation(self) -> np.ndarray:
         """``base_p_tip`` (N, 3) [m]."""
-        return self.translations[-1]
+        if self.row_tips is None:
+            return self.translations[-1]
+        return self.translations[self._tip_positions, np.arange(len(self.row_tips))]
+
+    @property
+    def _tip_positions(self) -> np.ndarray:
+        assert self.row_tips is not None
+        return self.first_tip + self.row_tips
+
+    def acting(self, k: int) -> np.ndarray | None:
+        """(N, 1, 1) 1 where position ``k`` moves the pose's tip, else 0; None when every one does."""
+        return None if self.reach is None else self.reach[k][:, None, None].astype(float)
 
 
 def skew(v: np.ndarray) -> np.ndarray:
@@ -92,8 +139,11 @@ def axis_rotations(axis: np.ndarray, angles: np.ndarray) -> np.ndarray:
     return np.eye(3) + s * k + (1.0 - c) * (k @ k)
 
 
-def forward(chain: Chain, q: np.ndarray) -> Frames:
-    """World frames of all chain positions for joint values ``q`` (N, n) [rad or m]."""
+def forward(chain: Chain, q: np.ndarray, row_tips: np.ndarray | None = None) -> Frames:
+    """World frames of all chain positions for joint values ``q`` (N, n) [rad or m]; a tree's
+    (:func:`forward_tree`) with each pose's tip ``row_tips`` (N,) (default: the first)."""
+    if chain.parents:
+        return forward_tree(chain, q, row_tips)
     q = np.atleast_2d(np.asarray(q, dtype=float))
     n_poses, n = q.shape
     rotations = np.empty((2 * n + 1, n_poses, 3, 3))
@@ -115,6 +165,59 @@ def forward(chain: Chain, q: np.ndarray) -> Frames:
         rot = stacked_dot(rot, c_next.rotation)
         rotations[2 * j + 2], translations[2 * j + 2] = rot, pos
     return Frames(rotations, translations)
+
+
+def _moved(rot: np.ndarray, pos: np.ndarray, c: pin.SE3) -> tuple[np.ndarray, np.ndarray]:
+    """Frames (N, 3, 3), (N, 3) followed by the constant placement ``c``."""
+    return stacked_dot(rot, c.rotation), pos + stacked_dot(rot, c.translation[:, None])[:, :, 0]
+
+
+def _turned(
+    rot: np.ndarray, pos: np.ndarray, axis: np.ndarray, q: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Frames (N, 3, 3), (N, 3) moved by a joint of local twist ``axis`` (6,) by ``q`` (N,)."""
+    v, w = axis[:3], axis[3:]
+    if np.any(w):
+        k = skew(w)
+        rot_k = stacked_dot(rot, k)
+        s, c = np.sin(q)[:, None, None], np.cos(q)[:, None, None]
+        return rot + s * rot_k + (1.0 - c) * stacked_dot(rot_k.reshape(-1, 3, 3), k), pos
+    return rot, pos + stacked_dot(rot, v[:, None])[:, :, 0] * q[:, None]
+
+
+def forward_tree(chain: Chain, q: np.ndarray, row_tips: np.ndarray | None = None) -> Frames:
+    """World frames of a tree's positions (see :class:`Chain`, :class:`Frames`): joint ``j``'s at
+    ``2j`` (after ``C_j``) and ``2j + 1`` (after its motion), tip ``t``'s at ``2n + t``."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    n_poses, n = q.shape
+    n_tips = len(chain.tip_joints)
+    rotations = np.empty((2 * n + n_tips, n_poses, 3, 3))
+    translations = np.empty((2 * n + n_tips, n_poses, 3))
+    base = (np.broadcast_to(np.eye(3), (n_poses, 3, 3)), np.zeros((n_poses, 3)))
+    for j in range(n):
+        p = chain.parents[j]
+        rot, pos = base if p < 0 else (rotations[2 * p + 1], translations[2 * p + 1])
+        rotations[2 * j], translations[2 * j] = _moved(rot, pos, chain.placements[j])
+        rotations[2 * j + 1], translations[2 * j + 1] = _turned(
+            rotations[2 * j], translations[2 * j], chain.axes[j], q[:, j]
+        )
+    for t, j in enumerate(chain.tip_joints):
+        rot, pos = rotations[2 * j + 1], translations[2 * j + 1]
+        rotations[2 * n + t], translations[2 * n + t] = _moved(rot, pos, chain.placements[n + t])
+    tips = np.zeros(n_poses, dtype=int) if row_tips is None else np.asarray(row_tips, dtype=int)
+    return Frames(rotations, translations, tips, tree_reach(chain, tips), 2 * n)
+
+
+def tree_reach(chain: Chain, row_tips: np.ndarray) -> np.ndarray:
+    """(2n + T, N): whether position k moves pose i's tip (``row_tips``) in a tree."""
+    n, n_tips = chain.axes.shape[0], len(chain.tip_joints)
+    table = np.zeros((2 * n + n_tips, n_tips), dtype=bool)
+    for t, j in enumerate(chain.tip_joints):
+        table[2 * n + t, t] = True
+        while j >= 0:
+            table[2 * j : 2 * j + 2, t] = True
+            j = chain.parents[j]
+    return table[:, row_tips]
 
 
 def twist_columns(

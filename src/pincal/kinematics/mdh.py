@@ -25,7 +25,7 @@ from typing import NamedTuple
 import numpy as np
 import pinocchio as pin
 
-from pincal.errors import PincalError
+from pincal.errors import DataError, PincalError
 from pincal.kinematics.chain import Chain, right_twists
 from pincal.kinematics.models import Model, OffsetsModel, PlacementsModel, PoeModel
 from pincal.kinematics.twists import chain_twists
@@ -257,4 +257,9 @@ def make_model(kind: str, robot: Robot) -> Model:
     }
     if kind not in classes:
         raise PincalError(f"unknown model {kind!r}: choose one of {', '.join(MODELS)}")
+    if robot.is_tree and kind not in ("placements", "offsets"):
+        raise DataError(
+            f"model={kind} describes a serial chain, and the markers are on the branches of a tree "
+            f"({', '.join(robot.tips)}): use model=placements or model=offsets"
+        )
     return classes[kind](robot)

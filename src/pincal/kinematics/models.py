@@ -87,6 +87,8 @@ class PlacementsModel(Model):
         nominal = self.robot.placements
         n = self.robot.n_joints
         placements = [nominal[j] * pin.exp6(pin.Motion(x[6 * j : 6 * j + 6])) for j in range(n)]
+        if self.robot.is_tree:
+            return Chain.nominal(self.robot).with_joints(placements)
         return Chain((*placements, nominal[n]), self.robot.axes)
 
     def twists(self, x: np.ndarray) -> np.ndarray:
@@ -111,6 +113,8 @@ class OffsetsModel(Model):
     def chain(self, x: np.ndarray) -> Chain:
         nominal, axes = self.robot.placements, self.robot.axes
         placements = [nominal[j] * pin.exp6(pin.Motion(axes[j] * x[j])) for j in range(len(x))]
+        if self.robot.is_tree:
+            return Chain.nominal(self.robot).with_joints(placements)
         return Chain((*placements, nominal[-1]), axes)
 
     def twists(self, x: np.ndarray) -> np.ndarray:

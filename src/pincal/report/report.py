@@ -155,19 +155,25 @@ def report_dict(
         "urdf_means": "the URDF as it is: nominal tool, only the instrument registration fitted",
         "exported_means": "the written URDF alone, with the sidecar's registration and tool (as a URDF "
         "consumer loads it); after: the URDF with the whole sidecar",
-        "train": _pair(
-            cal.train_before,
-            cal.train_after,
-            cal.train_urdf,
-            exported.train if exported else None,
-            scored_rows(data, cal.excluded),
+        "train": with_markers(
+            _pair(
+                cal.train_before,
+                cal.train_after,
+                cal.train_urdf,
+                exported.train if exported else None,
+                scored_rows(data, cal.excluded),
+            ),
+            cal.train_markers,
         ),
-        "test": _pair(
-            cal.test_before,
-            cal.test_after,
-            cal.test_urdf,
-            exported.test if exported else None,
-            scored_rows(test),
+        "test": with_markers(
+            _pair(
+                cal.test_before,
+                cal.test_after,
+                cal.test_urdf,
+                exported.test if exported else None,
+                scored_rows(test),
+            ),
+            cal.test_markers,
         ),
         "residual": None if outcome is None else outcome.residual.to_dict(),
         "balance": None if cal.balance is None else cal.balance.to_dict(),
@@ -197,7 +203,15 @@ def scored_rows(data: Dataset | None, excluded: tuple[tuple[int, float], ...] = 
     if data is None:
         return None
     left_out = {int(row) for row, _ in excluded}
-    return [int(row) for row in data.row_numbers if int(row) not in left_out]
+    rows = dict.fromkeys(int(row) for row in data.row_numbers)  # several markers: a pose's row once
+    return [row for row in rows if row not in left_out]
+
+
+def with_markers(entry: dict[str, Any] | None, markers: dict[str, ErrorStats]) -> dict[str, Any] | None:
+    """A ``train`` or ``test`` entry with ``markers`` (several markers: the full model's ERR of each)."""
+    if entry is None or not markers:
+        return entry
+    return {**entry, "markers": {label: stats.to_dict() for label, stats in markers.items()}}
 
 
 def report_json(

@@ -54,6 +54,12 @@ def _row(label: str, *stats: ErrorStats | None) -> str:
     return f"  {label:10s} " + " ".join(f"{_fmt(s):>21s}" for s in stats)
 
 
+def _markers_said(cal: Calibration) -> str:
+    """``, 3 markers (1, 2, 3)`` for several markers, else nothing."""
+    labels = cal.measurement.markers
+    return f", {len(labels)} markers ({', '.join(labels)})" if labels else ""
+
+
 def choice_lines(cal: Calibration, data: Dataset | None = None) -> list[str]:
     """What was chosen and why, a line or a few."""
     choice, lines = choice_of(cal), list[str]()
@@ -147,6 +153,17 @@ def _exported_rows(cal: Calibration, outcome: Outcome | None) -> list[str]:
     return rows
 
 
+def marker_rows(cal: Calibration) -> list[str]:
+    """Several markers: one row per marker, its error after on the fitted and held-out poses."""
+    if not cal.train_markers:
+        return []
+    lines = [f"  per marker, after: {'fitted':>21s} {'held out':>21s}"]
+    for label, fitted in cal.train_markers.items():
+        held = cal.test_markers.get(label)
+        lines.append(f"  marker {label:10s} {_fmt(fitted):>21s} {_fmt(held):>21s}")
+    return lines
+
+
 def summary(
     cal: Calibration, data: Dataset | None = None, test: Dataset | None = None, outcome: Outcome | None = None
 ) -> str:
@@ -157,7 +174,7 @@ def summary(
     what, stat = kind.error, kind.statistic
     lines = [
         f"robot {cal.robot.name} ({cal.robot.n_joints} joints, tip {cal.robot.tip}), model {cal.model.kind}, "
-        f"measure {cal.measurement.kind}, {cal.n_poses} poses",
+        f"measure {cal.measurement.kind}, {cal.n_poses} poses{_markers_said(cal)}",
         f"parameters: {ident.n_identifiable} of {len(cal.names)} identifiable from this data ("
         + ", ".join(f"{words} {n} of {total}" for words, n, total in parameter_groups(cal))
         + f"), condition number {ident.condition_number:.3g}",
@@ -168,6 +185,7 @@ def summary(
     if cal.test_after is not None:
         lines.append(_row("held out", cal.test_urdf, cal.test_before, cal.test_after))
     lines += _exported_rows(cal, outcome)
+    lines += marker_rows(cal)
     fitted = kind.fitted
     lines.append(f"  (before: nominal kinematics, {fitted} fitted; URDF as is: nominal tool)")
     if ident.gauges:

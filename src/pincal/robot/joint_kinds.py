@@ -116,6 +116,41 @@ def actuated_joints(
     return keep
 
 
+def tree_joints(
+    full: pin.Model,
+    tip_ids: list[int],
+    tips: list[str],
+    joints: Iterable[str] | None,
+    mimic: Mapping[str, str],
+) -> list[int]:
+    """:func:`actuated_joints` of a tree: the joints between the base and any of the frames
+    ``tip_ids`` (named ``tips``), in the model's order, or ``joints`` among them.
+
+    Raises:
+        RobotError: as :func:`actuated_joints` does for each frame, or a joint off every path.
+    """
+    wanted = None if joints is None else set(joints)
+    keep: set[int] = set()
+    for tip_id, tip in zip(tip_ids, tips):
+        path = {full.names[j] for j in joint_path(full, full.frames[tip_id].parentJoint)}
+        on = None if wanted is None else [j for j in wanted if j in path]
+        if on is not None and not on:
+            continue
+        keep.update(actuated_joints(full, tip_id, tip, on, mimic))
+    if wanted is not None:
+        off = wanted - {full.names[j] for j in keep} - set(full.names[1:])
+        if off:
+            raise RobotError(f"the URDF has no joint named {', '.join(sorted(off))}")
+        unused = wanted - {full.names[j] for j in keep}
+        if unused:
+            raise RobotError(
+                f"joint(s) {', '.join(sorted(unused))} are not between the base and {', '.join(tips)}"
+            )
+    if not keep:
+        raise RobotError(f"no revolute, continuous or prismatic joint between the base and {', '.join(tips)}")
+    return sorted(keep)
+
+
 def reference_configuration(full: pin.Model, locked: Mapping[str, float] | None) -> np.ndarray:
     """Pinocchio's neutral configuration of ``full`` with the ``locked`` joints at their values.
 

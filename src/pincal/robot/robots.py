@@ -28,7 +28,14 @@ from pincal.errors import RobotError
 from pincal.options import BUNDLED
 from pincal.robot.descriptions import URDF_SUFFIXES, robot_description
 from pincal.robot.inertias import borrow_inertias
-from pincal.robot.joint_kinds import actuated_joints, joint_path, mimic_joints, reference_configuration
+from pincal.robot.joint_kinds import (
+    actuated_joints,
+    joint_path,
+    mimic_joints,
+    reference_configuration,
+    tree_joints,
+)
+from pincal.robot.marker_tips import is_marker_spec, marker_spec, parse_marker_tips
 from pincal.robot.urdf_checks import check_urdf_structure
 
 if TYPE_CHECKING:
@@ -77,6 +84,8 @@ class Robot:
         urdf_text: the URDF the model was built from (a xacro's output, a kinematics YAML applied).
         lent_text: that URDF with the masses lent by ``inertias`` (empty when none were lent):
             what a corrected URDF is written from, so that its gravity torques are the fit's.
+        marker_frames: ``tip=1=FRAME_A,2=FRAME_B``: each marker label's frame (else empty).
+        tips: a tree (markers on several frames): those frames, ``tip`` first, else empty.
     """
 
     name: str
@@ -91,6 +100,48 @@ class Robot:
     urdf_joints: tuple[str, ...] = ()
     urdf_text: str = field(default="", repr=False)
     lent_text: str = field(default="", repr=False)
+    marker_frames: dict[str, str] = field(default_factory=dict)
+    tips: tuple[str, ...] = ()
+
+    @property
+    def is_tree(self) -> bool:
+        """Whether markers are on several frames (the chain is then a tree)."""
+        return len(self.tips) > 1
+
+    @property
+    def tip_spec(self) -> str:
+        """The ``tip=`` that loads this chain again (``1=FRAME_A,2=FRAME_B`` for markers by label)."""
+        return marker_spec(self.marker_frames) if self.marker_frames else self.tip
+
+    def marker_tip(self, label: str) -> int:
+        """The index in :attr:`tips` of the frame marker ``label`` is on (0: the tip).
+
+        Raises:
+            RobotError: ``tip=`` names frames by label and not this one.
+        """
+        if not self.marker_frames:
+            return 0
+        if label not in self.marker_frames:
+            given = ", ".join(self.marker_frames)
+            raise RobotError(
+                f"the data has marker {label}, which tip= does not place on a frame (it names {given}): "
+                f"add {label}=FRAME to tip="
+            )
+        return max(0, list(self.tips).index(self.marker_frames[label])) if self.tips else 0
+
+    @cached_property
+    def parents(self) -> tuple[int, ...]:
+        """A tree's parent joint of each chain joint (-1: the base), else empty."""
+        if not self.is_tree:
+            return ()
+        return tuple(int(self.model.parents[j]) - 1 for j in self._joint_ids)
+
+    @cached_property
+    def tip_joints(self) -> tuple[int, ...]:
+        """A tree's chain joint each of :attr:`tips` hangs on, else empty."""
+        if not self.is_tree:
+            return ()
+        return tuple(int(self.model.frames[_find_frame(self.model, f)].parentJoint) - 1 for f in self.tips)
 
     @property
     def n_joints(self) -> int:
@@ -108,6 +159,11 @@ class Robot:
     def placements(self) -> tuple[pin.SE3, ...]:
         """Nominal constant placements ``C_0 ... C_n`` of the chain (joint origins, then tip)."""
         joints = [self.model.jointPlacements[j].copy() for j in self._joint_ids]
+        if self.is_tree:  # each tip's placement on its joint
+            return (
+                *joints,
+                *(self.model.frames[_find_frame(self.model, f)].placement.copy() for f in self.tips),
+            )
         return (*joints, self.model.frames[self.tip_frame_id].placement.copy())
 
     @property
@@ -226,6 +282,9 @@ def load_robot(
         RobotError: unknown name, unreadable URDF, unknown tip frame or joint.
     """
     name = str(robot)
+    markers = parse_marker_tips(tip) if tip is not None and is_marker_spec(tip) else {}
+    frames = list(dict.fromkeys(markers.values()))
+    tip = frames[0] if frames else tip
     if name in BUNDLED:
         path = bundled_urdf(name)
         tip = tip or BUNDLED[name][2]
@@ -245,12 +304,15 @@ def load_robot(
         raise RobotError(
             f"frame {tip!r} has no joint between the base and it: choose a tip on the arm with tip="
         )
-    keep = actuated_joints(full, tip_id, tip, joints, mimic)
+    if len(frames) > 1:
+        keep = tree_joints(full, [_find_frame(full, f) for f in frames], frames, joints, mimic)
+    else:
+        keep = actuated_joints(full, tip_id, tip, joints, mimic)
     q_ref = reference_configuration(full, locked)
     lock = [j for j in range(1, full.njoints) if j not in keep]
     model = pin.buildReducedModel(full, lock, q_ref) if lock else full
     tip_id = _find_frame(model, tip)
-    if model.frames[tip_id].parentJoint != model.njoints - 1 and model.njoints > 1:
+    if model.frames[tip_id].parentJoint != model.njoints - 1 and model.njoints > 1 and len(frames) < 2:
         raise RobotError(f"frame {tip!r} is not at the end of the chain")  # pragma: no cover
     names = tuple(model.names[1:])
     prismatic = tuple(model.joints[j].shortname().startswith("JointModelP") for j in range(1, model.njoints))
@@ -272,6 +334,8 @@ def load_robot(
         urdf_joints=tuple(full.names[1:]),
         urdf_text=text,
         lent_text=lent,
+        marker_frames=markers,
+        tips=tuple(frames) if len(frames) > 1 else (),
     )
 
 
