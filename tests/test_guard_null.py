@@ -11,6 +11,7 @@
 
 from __future__ import annotations
 
+import re
 from dataclasses import replace
 from functools import cache
 
@@ -72,7 +73,8 @@ def test_real_errors_are_still_exported_after_selection(seed: int) -> None:
     assert cal.test_after is not None and cal.test_before is not None
     assert cal.test_after.rms_mm < 0.5 * cal.test_before.rms_mm
     said = pincal.report_dict(cal)["guard"]["z_min_from"]
-    assert "forward selection" in said and "false export on pure noise 2.0%" in said
+    rate = re.search(r"false export on pure noise ([0-9.]+)%", said)
+    assert "forward selection" in said and rate is not None and float(rate.group(1)) <= 5.0
 
 
 def test_given_parameters_keep_the_fixed_threshold() -> None:

@@ -87,6 +87,7 @@ def null_threshold(
         return None
     res = plan.project(setup.linearised(nominal)[0])
     sigma = float(np.sqrt(res @ res / free))
+
     def draw(k: int) -> float:  # each draw its own seed: the same answer on one core or two
         return _null_z(setup, plan, sigma, np.random.default_rng([seed, k]))
 
