@@ -13,7 +13,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import pincal
-from pincal.data.dataset import atomic_write
+from pincal.files import atomic_write
 
 
 def command_line(script: str, argv: Sequence[str], names: dict[str, str]) -> str:

@@ -62,7 +62,9 @@ from markdown_page import command_line, table, text_block, write_page  # noqa: E
 
 import pincal  # noqa: E402
 from pincal.auto.choice import choice_of  # noqa: E402
-from pincal.data.dataset import Dataset, atomic_write, read_table, write_csv  # noqa: E402
+from pincal.data.csv_writer import write_csv  # noqa: E402
+from pincal.data.dataset import Dataset, read_table  # noqa: E402
+from pincal.files import atomic_write  # noqa: E402
 from pincal.identify.outliers import THRESHOLD  # noqa: E402
 from pincal.identify.registration import quaternions  # noqa: E402
 from pincal.report.summary_table import choice_lines  # noqa: E402

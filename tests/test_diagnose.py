@@ -23,6 +23,7 @@ import pytest
 
 import pincal
 import pincal.auto.diagnose
+import pincal.identify.measurement
 import pincal.kinematics.effects
 import pincal.kinematics.mdh
 from pincal.auto.diagnose import Diagnosis, diagnose
@@ -343,7 +344,7 @@ def test_extension_jacobian_matches_finite_differences(get_robot, name: str, lab
     pin.seed(17)  # SE3.Random draws from Eigen's generator
     ext = Extension.parse(robot, label)
     model = pincal.kinematics.mdh.make_model(kind, robot)
-    measurement = pincal.identify.measurements.Measurement(
+    measurement = pincal.identify.measurement.Measurement(
         "position", instrument_T_base=pin.SE3.Random(), tool=pin.SE3.Random()
     )
     q = robot.random_configurations(12, rng)

@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 import pincal
+import pincal.identify.identifiability
 import pincal.identify.solver as solver
 from pincal.identify.measurements import Problem
 from pincal.identify.prior import WEIGHTS
@@ -45,7 +46,7 @@ def test_standard_deviations_are_posterior_and_below_the_prior(weight: float) ->
     problem = Problem(cal.model, cal.measurement, data, cal.extension)
     n = cal.model.n_params
     free = cal.identifiability.identifiable
-    scale = solver.natural_scale(problem)
+    scale = pincal.identify.identifiability.natural_scale(problem)
     res = problem.residuals(cal.theta)
     delta = (cal.theta[:n] - problem.initial_theta()[:n])[free[:n]] / scale[:n][free[:n]]
     pulled, k = int(free[:n].sum()), int(free.sum())

@@ -35,6 +35,7 @@ import pinocchio as pin
 import pytest
 
 import pincal
+import pincal.identify.measurement
 import pincal.kinematics.mdh
 import pincal.simulation.truth
 from pincal.auto.diagnose import diagnose
@@ -183,7 +184,7 @@ def _points_problem(
     truth = points_truth(robot, seed)
     data = simulate_points(truth, TRAIN_SOCKETS, 12, NOISE, rng)
     ext = Extension.parse(robot, f"joint_compliance:{ROBOTS[key][2]}") if extended else None
-    measurement = pincal.identify.measurements.Measurement(
+    measurement = pincal.identify.measurement.Measurement(
         "points",
         tool=pin.SE3(np.eye(3), truth.tool.translation),
         points=data.point_names,

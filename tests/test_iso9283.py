@@ -13,7 +13,7 @@ import pinocchio as pin
 import pytest
 from cli_run import one_error_line, run
 
-from pincal.data.dataset import write_csv
+from pincal.data.csv_writer import write_csv
 from pincal.simulation.simulated_recording import write_recording
 from pincal.simulation.truth import TrueRobot, random_truth
 

@@ -22,6 +22,7 @@ import pytest
 from finite_differences import tip_jacobian_fd
 
 import pincal
+import pincal.identify.measurement
 import pincal.kinematics.mdh
 from pincal.kinematics.chain import skew
 
@@ -119,7 +120,7 @@ def make_problem(
     rng = np.random.default_rng(seed)
     pin.seed(seed)  # SE3.Random draws from Eigen's generator
     model = pincal.kinematics.mdh.make_model(kind, robot)
-    measurement = pincal.identify.measurements.Measurement(
+    measurement = pincal.identify.measurement.Measurement(
         measure, instrument_T_base=pin.SE3.Random(), tool=pin.SE3.Random()
     )
     configurations = robot.random_configurations(8, rng)
@@ -197,7 +198,7 @@ def test_position_residual_joint_derivative_equals_pinocchio(get_robot, name: st
     n, n_poses = robot.n_joints, 6
     reg = pin.SE3(pin.exp3(rng.normal(size=3)), rng.normal(size=3))
     point = rng.normal(0.0, 0.1, 3)
-    measurement = pincal.identify.measurements.Measurement(
+    measurement = pincal.identify.measurement.Measurement(
         "position", instrument_T_base=reg, fit_instrument=False, tool=pin.SE3(np.eye(3), point)
     )
     configurations = robot.random_configurations(n_poses, rng)

@@ -16,6 +16,7 @@ import pytest
 
 import pincal
 import pincal.identify.kinds
+import pincal.identify.measurement
 import pincal.kinematics.mdh
 from pincal.identify.kinds import KINDS, MeasurementKind, get_kind
 from pincal.options import MEASURES
@@ -37,7 +38,7 @@ def make_problem(
     q = robot.random_configurations(N_POSES, rng)
     labels = np.repeat([0, 1], N_POSES // 2)
     names = ("a", "b") if measure == "points" else ()
-    measurement = pincal.identify.measurements.Measurement(
+    measurement = pincal.identify.measurement.Measurement(
         measure,
         instrument_T_base=pin.SE3.Random(),
         tool=pin.SE3.Random(),
@@ -63,7 +64,7 @@ def test_registry_holds_every_measure() -> None:
     assert tuple(KINDS) == MEASURES
     for name, kind in KINDS.items():
         assert isinstance(kind, MeasurementKind) and kind.name == name and get_kind(name) is kind
-        assert pincal.identify.measurements.Measurement(name).measure is kind
+        assert pincal.identify.measurement.Measurement(name).measure is kind
         assert kind.tool_dof in (3, 6)
 
 
@@ -73,19 +74,17 @@ def test_unknown_kind_is_refused_with_the_names(name: str) -> None:
         get_kind(name)
     assert all(k in str(raised.value) for k in KINDS)
     with pytest.raises(pincal.DataError, match="position, pose, distance, points"):
-        pincal.identify.measurements.Measurement(name)
+        pincal.identify.measurement.Measurement(name)
 
 
 def test_unknowns_follow_the_kind() -> None:
     """Registration: position and pose only; tool: 6 for pose, else 3; points: fixed points."""
     for name, kind in KINDS.items():
-        m = pincal.identify.measurements.Measurement(name, points=("a",) if kind.fixed_points else ())
+        m = pincal.identify.measurement.Measurement(name, points=("a",) if kind.fixed_points else ())
         assert m.n_instrument == (6 if kind.registered else 0)
         assert m.n_tool == kind.tool_dof
         assert m.n_points == (3 if kind.fixed_points else 0)
-        assert (
-            pincal.identify.measurements.Measurement(name, fit_tool=False, fit_instrument=False).n_tool == 0
-        )
+        assert pincal.identify.measurement.Measurement(name, fit_tool=False, fit_instrument=False).n_tool == 0
 
 
 @pytest.mark.parametrize("measure", MEASURES)

@@ -22,8 +22,10 @@ from contract_markers import rms_mm
 from marker_simulation import simulate, write
 
 import pincal
-from pincal.data.dataset import read_csv, write_csv
-from pincal.identify.measurements import Measurement, Problem
+from pincal.data.csv_writer import write_csv
+from pincal.data.dataset import read_csv
+from pincal.identify.measurement import Measurement
+from pincal.identify.measurements import Problem
 from pincal.kinematics.mdh import make_model
 from pincal.robot.robots import bundled_urdf
 

@@ -25,6 +25,7 @@ import pytest
 import pincal
 import pincal.data.dataset
 import pincal.export.urdf_writer
+import pincal.files
 from pincal.cli import main
 
 
@@ -326,7 +327,7 @@ def test_atomic_write_refuses_what_is_not_a_regular_file(tmp_path: Path) -> None
     os.mkfifo(tmp_path / "pipe")
     for path in (tmp_path / "pipe", tmp_path, Path("-")):
         with pytest.raises(pincal.OutputError):
-            pincal.data.dataset.atomic_write(path, "x")
+            pincal.files.atomic_write(path, "x")
     assert stat.S_ISFIFO((tmp_path / "pipe").stat().st_mode)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["pipe"]
 

@@ -22,7 +22,7 @@ import pytest
 
 import pincal
 from pincal.cli import main
-from pincal.data.dataset import write_csv
+from pincal.data.csv_writer import write_csv
 from pincal.errors import DataError
 from pincal.identify.prior import WEIGHTS, evidence_curve, log_evidence, parse_prior
 from pincal.identify.solver import identifiable_set, register, set_up, solve

@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 from cli_run import one_error_line, run
 
-from pincal.data.dataset import Dataset, write_csv
+from pincal.data.csv_writer import write_csv
+from pincal.data.dataset import Dataset
 from pincal.data.recordings import RecordingOptions, read_recording, static_segments
 from pincal.simulation.simulated_recording import Session, write_recording
 from pincal.simulation.truth import TrueRobot, random_truth

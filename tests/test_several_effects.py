@@ -16,7 +16,8 @@ import pincal
 import pincal.report.outcome
 import pincal.simulation.truth
 from pincal.data.directions import move_directions
-from pincal.identify.measurements import Measurement, Problem
+from pincal.identify.measurement import Measurement
+from pincal.identify.measurements import Problem
 from pincal.kinematics.effects import Effects, Extension, combined
 from pincal.kinematics.mdh import make_model
 

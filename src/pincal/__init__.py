@@ -34,9 +34,9 @@ if TYPE_CHECKING:  # for type checkers (``as``: re-exported); at run time each l
     from .auto.diagnose import diagnose as diagnose
     from .auto.pipeline import calibrate as calibrate
     from .auto.settings import CalibrateOptions as CalibrateOptions
+    from .data.csv_writer import write_csv as write_csv
     from .data.dataset import Dataset as Dataset
     from .data.dataset import read_csv as read_csv
-    from .data.dataset import write_csv as write_csv
     from .demo import gao2013_data as gao2013_data
     from .export.calibrated_robot import CalibratedRobot as CalibratedRobot
     from .export.calibrated_robot import load_calibration as load_calibration
@@ -72,7 +72,7 @@ _LAZY: dict[str, str] = {
     "CalibrateOptions": "auto.settings",
     "Dataset": "data.dataset",
     "read_csv": "data.dataset",
-    "write_csv": "data.dataset",
+    "write_csv": "data.csv_writer",
     "gao2013_data": "demo",
     "CalibratedRobot": "export.calibrated_robot",
     "load_calibration": "export.calibrated_robot",

@@ -30,10 +30,11 @@ from pincal.export.calibrated_robot import CalibratedRobot, load_calibration
 from pincal.export.urdf_writer import corrected_files, corrected_urdf
 from pincal.identify.calibration import Calibration
 from pincal.identify.evaluation import ErrorStats, evaluate
-from pincal.identify.identifiability import Identifiability
+from pincal.identify.identifiability import Identifiability, natural_scale
 from pincal.identify.lm import OptimizeResult
-from pincal.identify.measurements import Measurement, Problem
-from pincal.identify.solver import Setup, assess, natural_scale, register, solve
+from pincal.identify.measurement import Measurement
+from pincal.identify.measurements import Problem
+from pincal.identify.solver import Setup, assess, register, solve
 from pincal.kinematics.effects import AnyEffect
 from pincal.kinematics.mdh import make_model
 from pincal.robot.robots import Robot, load_robot

@@ -19,11 +19,10 @@ from pincal.errors import DataError
 from pincal.identify.fixed_points import PointDistance
 from pincal.identify.guard import DEFAULT_PULL, Pull
 from pincal.identify.identifiability import RCOND
-from pincal.identify.measurements import ROTATION_WEIGHT
 from pincal.identify.solver import SETUP_KEYS
 from pincal.kinematics.effects import AnyEffect, Extension, combined
 from pincal.kinematics.gravity import Payload
-from pincal.options import LOSSES
+from pincal.options import LOSSES, ROTATION_WEIGHT
 from pincal.robot.robots import Robot
 
 #: How geometry and an effect share the fit (see :attr:`CalibrateOptions.deliver`).

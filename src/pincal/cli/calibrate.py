@@ -28,8 +28,9 @@ from pincal.cli.gravity_options import check_gravity_options, warn_unused_gravit
 from pincal.cli.pull_options import pull
 from pincal.data.dataset import Dataset
 from pincal.errors import DataError
+from pincal.export.added_frame import check_frame_name
 from pincal.export.ur_yaml import robot_ur_chain, write_ur_kinematics
-from pincal.export.urdf_writer import check_frame_name, corrected_files, origin_changes, sidecar_path
+from pincal.export.urdf_writer import corrected_files, origin_changes, sidecar_path
 from pincal.files import STDIN, atomic_write_many
 from pincal.identify.calibration import Calibration
 from pincal.report.outcome import Outcome, outcome

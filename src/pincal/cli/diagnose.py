@@ -22,8 +22,9 @@ from pincal.cli.common import (
     warn,
 )
 from pincal.cli.flags import as_flags
-from pincal.data.dataset import Dataset, atomic_write
+from pincal.data.dataset import Dataset
 from pincal.errors import DataError, IdentifiabilityError, OutputError
+from pincal.files import atomic_write
 from pincal.identify.calibration import Calibration
 from pincal.json_text import json_text
 from pincal.report.outcome import Outcome, outcome

@@ -8,8 +8,9 @@ import numpy as np
 
 from pincal.cli.common import check_outputs, locked_robot, urdf_path, warn
 from pincal.cli.flags import as_flags
-from pincal.data.dataset import UNITS, atomic_write
+from pincal.data.dataset import UNITS
 from pincal.errors import DataError, ImplausibleError
+from pincal.files import atomic_write
 from pincal.json_text import json_text
 from pincal.tool.flange_poses import read_flange_poses
 from pincal.tool.plausibility import judge_tool

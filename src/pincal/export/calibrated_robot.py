@@ -18,7 +18,6 @@ from pincal.export.effects_json import read_effects
 from pincal.export.ur_yaml import is_yaml
 from pincal.export.urdf_writer import moved_origins, robot_source, sidecar_path
 from pincal.inputs import read_bytes
-from pincal.kinematics.chain import rigid_transform
 from pincal.kinematics.effects import AnyEffect
 from pincal.robot.marker_tips import marker_spec
 from pincal.robot.robots import Robot, load_robot
@@ -88,6 +87,33 @@ class CalibratedRobot:
         placement = tip.placement * self.tool
         frame = pin.Frame("pincal_tool", tip.parentJoint, self.robot.tip_frame_id, placement, pin.OP_FRAME)
         return model, model.addFrame(frame)
+
+
+def rigid_transform(matrix: object, what: str, tol: float = 1e-6) -> pin.SE3:
+    """A 4×4 homogeneous matrix as an SE3, refused unless finite and rigid.
+
+    Args:
+        matrix: nested lists or an array (4, 4): rotation and translation [m], last row 0 0 0 1.
+        what: how to name the matrix in the message.
+        tol: largest error of ``RᵀR = I``, ``det R = 1`` and the last row.
+
+    Raises:
+        ValueError: not 4×4 numbers, not finite, a translation of 1e6 m or more (which overflows
+            the kinematics), or not a rotation and translation.
+    """
+    m = np.array(matrix, dtype=float)
+    if m.shape != (4, 4) or not np.all(np.isfinite(m)):
+        raise ValueError(f"{what}: not a 4x4 matrix of finite numbers")
+    if np.abs(m[:3, 3]).max() >= 1e6:
+        raise ValueError(f"{what}: a translation of 1e6 m or more")
+    rot = m[:3, :3]
+    if (
+        np.abs(rot.T @ rot - np.eye(3)).max() > tol
+        or abs(np.linalg.det(rot) - 1.0) > tol
+        or np.abs(m[3] - [0.0, 0.0, 0.0, 1.0]).max() > tol
+    ):
+        raise ValueError(f"{what}: the matrix is not a rotation and a translation")
+    return pin.SE3(m)
 
 
 def _registration(entry: Any) -> pin.SE3 | None:

@@ -24,12 +24,12 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from pincal.data.dataset import atomic_write
 from pincal.data.program import Targets
 from pincal.errors import DataError, NotSupportedError
 from pincal.export.calibrated_robot import CalibratedRobot
+from pincal.files import atomic_write
 from pincal.identify.kinds import get_kind
-from pincal.identify.measurements import ROTATION_WEIGHT
+from pincal.options import ROTATION_WEIGHT
 from pincal.robot.robots import Robot
 
 STATUSES = ("ok", "unreachable", "singular")

@@ -25,7 +25,6 @@ round-trip). The XML is parsed with entity resolution, DTD loading and network a
 
 from __future__ import annotations
 
-import re
 from pathlib import Path
 from typing import Any
 
@@ -34,6 +33,7 @@ import pinocchio as pin
 from lxml import etree
 
 from pincal.errors import DataError, ImplausibleError, PincalError
+from pincal.export.added_frame import add_tool_frame, check_frame_name
 from pincal.export.effects_json import effects_json
 from pincal.export.origins import OriginChange, origin_change, read_origin, write_origin
 from pincal.files import atomic_write_many
@@ -132,7 +132,9 @@ def corrected_urdf(cal: Calibration, add_frame: str | None = None) -> bytes:
     if ball is not None:
         write_origin(ball, read_origin(ball.find("origin")) * pin.SE3(np.eye(3), cal.split()[2].translation))
     if add_frame is not None:
-        _add_frame(root, robot.tip, add_frame, cal)
+        tool = cal.split()[2]
+        tool = tool if cal.measurement.measure.tool_dof == 6 else pin.SE3(np.eye(3), tool.translation)
+        add_tool_frame(root, robot.tip, add_frame, tool, ball is not None)
     return _prolog(robot_source(robot)) + etree.tostring(root, encoding="UTF-8") + b"\n"
 
 
@@ -211,36 +213,6 @@ def _prolog(source: bytes) -> bytes:
         pos = end + len(ends[opener])
     prolog = source[:pos]
     return prolog if prolog.strip() else b'<?xml version="1.0" encoding="UTF-8"?>\n'
-
-
-def check_frame_name(name: str | None) -> None:
-    """Refuse an ``--add-frame`` name that is not a plain XML name."""
-    if name is not None and not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_.-]*", name):
-        raise DataError(f"add_frame={name!r}: use letters, digits, '_', '-' or '.', starting with a letter")
-
-
-def _add_frame(root: etree._Element, tip: str, name: str, cal: Calibration) -> None:
-    links = {link.get("name") for link in root.findall("link")}
-    if tip not in links:
-        raise DataError(f"add_frame= needs the tip {tip!r} to be a link of the URDF")
-    if name in links or f"{name}_joint" in {j.get("name") for j in root.findall("joint")}:
-        raise DataError(f"add_frame={name!r}: the URDF already has a link or joint of that name")
-    _, _, tool = cal.split()
-    indent = "\n  "
-    if len(root):
-        root[-1].tail = indent
-    joint = etree.SubElement(root, "joint", name=f"{name}_joint", type="fixed")
-    joint.text = indent + "  "
-    etree.SubElement(joint, "parent", link=tip).tail = indent + "  "
-    etree.SubElement(joint, "child", link=name).tail = indent + "  "
-    origin = etree.SubElement(joint, "origin")
-    origin.tail = indent
-    placement = tool if cal.measurement.measure.tool_dof == 6 else pin.SE3(np.eye(3), tool.translation)
-    if _ball_joint(root, cal) is not None:  # the tip link is the ball's centre already
-        placement = pin.SE3.Identity()
-    write_origin(joint, placement)
-    joint.tail = indent
-    etree.SubElement(root, "link", name=name).tail = "\n"
 
 
 def sidecar(cal: Calibration, urdf_name: str) -> dict[str, Any]:

@@ -10,7 +10,8 @@ import pinocchio as pin
 from pincal.data.dataset import Dataset
 from pincal.identify.evaluation import ErrorStats
 from pincal.identify.identifiability import Identifiability
-from pincal.identify.measurements import Measurement, Problem, marker_points, unpack
+from pincal.identify.measurement import Measurement, marker_points, unpack
+from pincal.identify.measurements import Problem
 from pincal.identify.records import Balance, Choice, Guard, Judgement, PriorChoice
 from pincal.kinematics.chain import Chain, forward
 from pincal.kinematics.effects import AnyEffect

@@ -16,7 +16,8 @@ import numpy as np
 
 from pincal.data.dataset import Dataset
 from pincal.identify.fixed_points import placement, point_errors, point_means
-from pincal.identify.measurements import Measurement, Problem
+from pincal.identify.measurement import Measurement
+from pincal.identify.measurements import Problem
 from pincal.kinematics.effects import AnyEffect
 from pincal.kinematics.models import Model
 

@@ -17,10 +17,13 @@ from dataclasses import dataclass, replace
 import numpy as np
 import scipy.linalg
 
-from pincal.data.dataset import every_marker
+from pincal.data.checks import spread
+from pincal.data.dataset import Dataset, every_marker
 from pincal.errors import IdentifiabilityError
 from pincal.identify.measurements import Problem
 from pincal.identify.registration import quaternions
+from pincal.kinematics.chain import Chain, forward
+from pincal.robot.robots import Robot
 
 #: Singular values below ``RCOND · σ_max`` count as zero.
 RCOND = 1e-6
@@ -199,3 +202,24 @@ def check_rank(
         "move every joint over its range, fit fewer parameters (model=offsets), or pass "
         "partial=True to fit only what this data identifies"
     )
+
+
+def workspace_length(data: Dataset, robot: Robot | None = None) -> float:
+    """RMS distance of the measured points from their centroid [m] (at least 5 cm); for
+    fixed-point data, whose points are few, the RMS distance of the nominal tip from the base."""
+    if data.labels is not None and robot is not None:
+        tips = forward(Chain.nominal(robot), data.q).tip_translation
+        return max(0.05, float(np.sqrt(np.mean(np.sum(tips**2, axis=1)))))
+    return max(0.05, spread(data.points))
+
+
+def natural_scale(problem: Problem) -> np.ndarray:
+    """Natural size of each unknown of a problem (see :class:`Setup`)."""
+    robot, data, extension = problem.model.robot, problem.data, problem.extension
+    length = workspace_length(data, robot)
+    scale = parameter_scale(problem.units, length)
+    if extension is not None:  # natural size of an effect: moving the joint by 1 mm at the lever arm
+        rms = np.sqrt(np.mean(problem.regressors**2, axis=0))
+        lever = np.where(np.asarray(robot.prismatic)[problem.param_joints], 1.0, length)
+        scale[problem.model.n_params : problem.n_model] = 1.0 / (lever * np.where(rms > 0, rms, 1.0))
+    return scale

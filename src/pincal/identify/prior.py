@@ -1,7 +1,7 @@
 """The pull toward the URDF, its strength chosen from the data: type-II maximum likelihood.
 
 Each fit holds its geometric corrections ``δ`` (in natural units: metres, or the rotation that
-moves the workspace by 1 m, see :func:`pincal.identify.solver.natural_scale`) near the URDF by rows
+moves the workspace by 1 m, see :func:`pincal.identify.identifiability.natural_scale`) near the URDF by rows
 ``w · δ`` beside the residuals. Read as a Gaussian model, residuals ``r ~ N(0, σ²)`` and
 corrections ``δ ~ N(0, (σ/w)²)``, the weight ``w`` is the ratio of the noise to the size the
 corrections are expected to have. Where the data pin a direction of the model down, ``w`` hardly

@@ -14,7 +14,7 @@ import pinocchio as pin
 
 from pincal.data.dataset import Dataset
 from pincal.identify.chunked import sample_poses
-from pincal.identify.measurements import Measurement
+from pincal.identify.measurement import Measurement
 from pincal.kinematics.chain import Chain, forward
 from pincal.robot.robots import Robot
 

@@ -25,7 +25,7 @@ class ProblemRows(Protocol):
     Attributes:
         data: the poses.
         model: the geometric error model.
-        measurement: the :class:`~pincal.identify.measurements.Measurement` (kind, registration, tool).
+        measurement: the :class:`~pincal.identify.measurement.Measurement` (kind, registration, tool).
         extension: the non-geometric effect, if any.
         n_params: the number of unknowns θ; n_model: of the model's and the effect's.
         pairs: (m, 2) pose pairs of distance data; measured_distances: their distances [m].

@@ -26,7 +26,6 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from pincal.data.checks import spread
 from pincal.data.dataset import Dataset
 from pincal.data.pairs import gao_pairs
 from pincal.errors import DataError, IdentifiabilityError
@@ -34,17 +33,18 @@ from pincal.identify import chunked
 from pincal.identify.calibration import Calibration
 from pincal.identify.evaluation import evaluate, marker_stats
 from pincal.identify.fixed_points import PointDistance, blind_jacobian, gauge_reasons, placed_distances
-from pincal.identify.identifiability import RCOND, Identifiability, analyse, check_rank, parameter_scale
+from pincal.identify.identifiability import RCOND, Identifiability, analyse, check_rank, natural_scale
 from pincal.identify.kinds import check_options, get_kind
 from pincal.identify.lm import OptimizeResult, levenberg_marquardt
-from pincal.identify.measurements import ROTATION_WEIGHT, Measurement, Problem, held_markers
+from pincal.identify.measurement import Measurement, held_markers, marker_setup
+from pincal.identify.measurements import Problem
 from pincal.identify.outliers import find_outliers
 from pincal.identify.registration import initial_measurement
 from pincal.identify.uncertainty import posterior_std
-from pincal.kinematics.chain import Chain, forward
 from pincal.kinematics.effects import AnyEffect
 from pincal.kinematics.mdh import make_model
 from pincal.kinematics.models import Model
+from pincal.options import ROTATION_WEIGHT
 from pincal.robot.robots import Robot
 
 #: Keyword arguments of :func:`calibrate` that describe the measurement set-up (see :func:`set_up`).
@@ -97,15 +97,6 @@ class Setup:
     def data(self) -> Dataset:
         """The fitted poses."""
         return self.problem.data
-
-
-def workspace_length(data: Dataset, robot: Robot | None = None) -> float:
-    """RMS distance of the measured points from their centroid [m] (at least 5 cm); for
-    fixed-point data, whose points are few, the RMS distance of the nominal tip from the base."""
-    if data.labels is not None and robot is not None:
-        tips = forward(Chain.nominal(robot), data.q).tip_translation
-        return max(0.05, float(np.sqrt(np.mean(np.sum(tips**2, axis=1)))))
-    return max(0.05, spread(data.points))
 
 
 def _pairs(pairs: str | np.ndarray, n: int) -> np.ndarray | None:
@@ -162,49 +153,6 @@ def set_up(
     )
     problem = Problem(mdl, initial_measurement(robot, data, measurement), data, extension)
     return Setup(problem, natural_scale(problem), tool_se3)
-
-
-def marker_setup(data: Dataset, tool: Any, robot: Robot) -> dict[str, Any]:
-    """The :class:`Measurement` fields of several markers per pose: their labels, their frames on
-    a tree and, given, their points (``tool``: one point for all, (K, 3), or ``{label: (3,)}`` [m]).
-
-    Raises:
-        DataError: the robot is a tree and the data has one marker per pose (``x,y,z``).
-    """
-    if data.marker is None:
-        if robot.is_tree:
-            raise DataError(
-                f"tip= puts markers on {', '.join(robot.tips)}, and the data has one marker (x,y,z): "
-                "give xK,yK,zK columns per marker, with the labels tip= names"
-            )
-        return {}
-    k = len(data.marker_names)
-    given = None
-    if isinstance(tool, dict):  # a point per marker label
-        missing = [label for label in data.marker_names if label not in tool]
-        if missing or set(tool) - set(data.marker_names):
-            raise DataError(
-                f"tool= gives points for markers {', '.join(tool)}, the data has "
-                f"{', '.join(data.marker_names)}: give a point for each of the data's markers"
-            )
-        given = np.array([np.asarray(tool[label], dtype=float) for label in data.marker_names])
-    elif tool is not None:
-        point = tool.translation if isinstance(tool, pin.SE3) else np.asarray(tool, dtype=float)
-        given = np.tile(point, (k, 1)) if point.size == 3 else point.reshape(k, 3)
-    tips = tuple(robot.marker_tip(label) for label in data.marker_names) if robot.is_tree else ()
-    return {"markers": data.marker_names, "marker_points": given, "marker_tips": tips}
-
-
-def natural_scale(problem: Problem) -> np.ndarray:
-    """Natural size of each unknown of a problem (see :class:`Setup`)."""
-    robot, data, extension = problem.model.robot, problem.data, problem.extension
-    length = workspace_length(data, robot)
-    scale = parameter_scale(problem.units, length)
-    if extension is not None:  # natural size of an effect: moving the joint by 1 mm at the lever arm
-        rms = np.sqrt(np.mean(problem.regressors**2, axis=0))
-        lever = np.where(np.asarray(robot.prismatic)[problem.param_joints], 1.0, length)
-        scale[problem.model.n_params : problem.n_model] = 1.0 / (lever * np.where(rms > 0, rms, 1.0))
-    return scale
 
 
 def solve(

@@ -329,30 +329,3 @@ def jlog3(rot: np.ndarray, log: np.ndarray | None = None) -> np.ndarray:
     coef = np.where(small, 1.0 / 12.0 + angle**2 / 720.0, closed)
     k = skew(log)
     return np.eye(3) + 0.5 * k + coef[:, None, None] * (k @ k)
-
-
-def rigid_transform(matrix: object, what: str, tol: float = 1e-6) -> pin.SE3:
-    """A 4×4 homogeneous matrix as an SE3, refused unless finite and rigid.
-
-    Args:
-        matrix: nested lists or an array (4, 4): rotation and translation [m], last row 0 0 0 1.
-        what: how to name the matrix in the message.
-        tol: largest error of ``RᵀR = I``, ``det R = 1`` and the last row.
-
-    Raises:
-        ValueError: not 4×4 numbers, not finite, a translation of 1e6 m or more (which overflows
-            the kinematics), or not a rotation and translation.
-    """
-    m = np.array(matrix, dtype=float)
-    if m.shape != (4, 4) or not np.all(np.isfinite(m)):
-        raise ValueError(f"{what}: not a 4x4 matrix of finite numbers")
-    if np.abs(m[:3, 3]).max() >= 1e6:
-        raise ValueError(f"{what}: a translation of 1e6 m or more")
-    rot = m[:3, :3]
-    if (
-        np.abs(rot.T @ rot - np.eye(3)).max() > tol
-        or abs(np.linalg.det(rot) - 1.0) > tol
-        or np.abs(m[3] - [0.0, 0.0, 0.0, 1.0]).max() > tol
-    ):
-        raise ValueError(f"{what}: the matrix is not a rotation and a translation")
-    return pin.SE3(m)

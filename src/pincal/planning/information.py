@@ -28,7 +28,8 @@ from pincal.data.dataset import Dataset
 from pincal.identify.fixed_points import PointDistance
 from pincal.identify.identifiability import analyse, parameter_scale
 from pincal.identify.kinds import get_kind
-from pincal.identify.measurements import Measurement, Problem
+from pincal.identify.measurement import Measurement
+from pincal.identify.measurements import Problem
 from pincal.kinematics.chain import Chain, forward
 from pincal.kinematics.effects import Extension
 from pincal.kinematics.mdh import make_model

@@ -35,8 +35,8 @@ from pincal.errors import DataError
 from pincal.files import atomic_write
 from pincal.identify.fixed_points import PointDistance
 from pincal.identify.kinds import get_kind
-from pincal.identify.measurements import ROTATION_WEIGHT
 from pincal.kinematics.effects import Extension
+from pincal.options import ROTATION_WEIGHT
 from pincal.planning.candidates import candidate_poses, check_memory, perturbed, socket_candidates
 from pincal.planning.design import CRITERIA, exchange, greedy, swap
 from pincal.planning.equations import check_equations

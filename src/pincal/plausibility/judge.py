@@ -195,11 +195,8 @@ def _rows(data: Dataset, mask: np.ndarray, most: int = 5) -> str:
 
 def _robust_scores(cal: Calibration, problem: Problem) -> np.ndarray:
     """Per-pose scores [m] of a ``soft_l1`` refit from the calibration (what its screen sees)."""
-    from pincal.identify.solver import (  # here: the solver's users import this module
-        Setup,
-        natural_scale,
-        solve,
-    )
+    from pincal.identify.identifiability import natural_scale
+    from pincal.identify.solver import Setup, solve  # here: the solver's users import this module
 
     setup = Setup(problem, natural_scale(problem), cal.measurement.tool)
     f_scale = max(robust_scale(problem.residuals(cal.theta)), 1e-9)

@@ -20,8 +20,8 @@ import numpy as np
 from pincal.data.dataset import Dataset, csv_columns, read_csv
 from pincal.errors import DataError, PincalError
 from pincal.identify.evaluation import evaluate
-from pincal.identify.measurements import ROTATION_WEIGHT
 from pincal.identify.solver import register, set_up
+from pincal.options import ROTATION_WEIGHT
 from pincal.plausibility.readings import IMPROVEMENT, WITHIN
 from pincal.plausibility.verdict import robot_size, score_mm
 from pincal.robot.robots import Robot, load_robot

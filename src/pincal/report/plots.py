@@ -19,8 +19,9 @@ import numpy as np
 
 from pincal.auto.diagnose import Diagnosis
 from pincal.auto.residual import ResidualVerdict
-from pincal.data.dataset import Dataset, atomic_write
+from pincal.data.dataset import Dataset
 from pincal.errors import DataError
+from pincal.files import atomic_write
 from pincal.identify.calibration import Calibration
 from pincal.kinematics.gravity import gravity_torques
 

@@ -171,3 +171,16 @@ def reference_configuration(full: pin.Model, locked: Mapping[str, float] | None)
         else:
             q_ref[joint.idx_q] = value
     return q_ref
+
+
+def joint_limits(model: pin.Model) -> tuple[tuple[bool, ...], np.ndarray, np.ndarray]:
+    """Which joints of a reduced model are prismatic, and their lower and upper limits [rad or m]
+    (±inf for a continuous joint, whose (cos, sin) has none)."""
+    n = model.njoints - 1
+    prismatic = tuple(model.joints[j].shortname().startswith("JointModelP") for j in range(1, model.njoints))
+    lower, upper = np.full(n, -np.inf), np.full(n, np.inf)
+    for k in range(n):
+        joint = model.joints[k + 1]
+        if joint.nq != 2:
+            lower[k], upper[k] = model.lowerPositionLimit[joint.idx_q], model.upperPositionLimit[joint.idx_q]
+    return prismatic, lower, upper

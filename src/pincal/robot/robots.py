@@ -9,13 +9,9 @@ joints' local unit twists ``S_j``. Lengths are metres, angles radians.
 
 from __future__ import annotations
 
-import contextlib
 import importlib.metadata
 import math
-import os
-import sys
-import tempfile
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -30,13 +26,13 @@ from pincal.robot.descriptions import URDF_SUFFIXES, robot_description
 from pincal.robot.inertias import borrow_inertias
 from pincal.robot.joint_kinds import (
     actuated_joints,
+    joint_limits,
     joint_path,
-    mimic_joints,
     reference_configuration,
     tree_joints,
 )
 from pincal.robot.marker_tips import is_marker_spec, marker_spec, parse_marker_tips
-from pincal.robot.urdf_checks import check_urdf_structure
+from pincal.robot.urdf_parse import parse_urdf
 
 if TYPE_CHECKING:
     from pincal.robot.ur_frames import URKinematics
@@ -224,23 +220,6 @@ def _deepest_body(model: pin.Model) -> str:
     return next(f.name for f in reversed(bodies) if len(joint_path(model, f.parentJoint)) == best)
 
 
-@contextlib.contextmanager
-def _stderr_captured() -> Iterator[Callable[[], list[str]]]:
-    """Capture what C++ code writes to file descriptor 2 (urdfdom's parse errors)."""
-    sys.stderr.flush()
-    saved = os.dup(2)
-    with tempfile.TemporaryFile(mode="w+b") as sink:
-        os.dup2(sink.fileno(), 2)
-        lines: list[str] = []
-        try:
-            yield lambda: lines
-        finally:
-            os.dup2(saved, 2)
-            os.close(saved)
-            sink.seek(0)
-            lines.extend(sink.read().decode("utf-8", "replace").splitlines())
-
-
 def _find_frame(model: pin.Model, name: str) -> int:
     matches = [i for i, f in enumerate(model.frames) if f.name == name]
     if not matches:
@@ -296,7 +275,7 @@ def load_robot(
             raise RobotError(f"URDF file not found: {path}")
     text = robot_description(path, xacro_args, package_paths, kinematics)
     lent = "" if inertias is None else _with_inertias(text, inertias)
-    full, mimic = _parse_urdf(path, lent or text)
+    full, mimic = parse_urdf(path, lent or text)
     if tip is None:
         tip = _deepest_body(full)
     tip_id = _find_frame(full, tip)
@@ -315,12 +294,7 @@ def load_robot(
     if model.frames[tip_id].parentJoint != model.njoints - 1 and model.njoints > 1 and len(frames) < 2:
         raise RobotError(f"frame {tip!r} is not at the end of the chain")  # pragma: no cover
     names = tuple(model.names[1:])
-    prismatic = tuple(model.joints[j].shortname().startswith("JointModelP") for j in range(1, model.njoints))
-    lower, upper = np.full(len(names), -np.inf), np.full(len(names), np.inf)
-    for k in range(len(names)):
-        joint = model.joints[k + 1]
-        if joint.nq != 2:  # a continuous joint (cos, sin) has no limits
-            lower[k], upper[k] = model.lowerPositionLimit[joint.idx_q], model.upperPositionLimit[joint.idx_q]
+    prismatic, lower, upper = joint_limits(model)
     return Robot(
         name=name,
         urdf_path=path,
@@ -346,22 +320,3 @@ def _with_inertias(text: str, donor: str | Path) -> str:
     if not path.is_file():
         raise RobotError(f"inertias={name}: no such URDF file, nor a bundled robot ({', '.join(BUNDLED)})")
     return borrow_inertias(text, robot_description(path), name)
-
-
-def _parse_urdf(path: Path, text: str) -> tuple[pin.Model, dict[str, str]]:
-    """The full Pinocchio model of a URDF's ``text`` (read from ``path``), and its mimic joints
-    (name -> the joint it mimics).
-
-    Raises:
-        RobotError: a structure that is not a tree of well-formed joints
-            (:func:`~pincal.robot.urdf_checks.check_urdf_structure`), or a URDF Pinocchio cannot parse
-            (with urdfdom's own error line when it wrote one).
-    """
-    check_urdf_structure(text, path)  # what would crash or mislead the parser, refused first
-    with _stderr_captured() as said:
-        try:
-            return pin.buildModelFromXML(text), mimic_joints(text)
-        except (RuntimeError, ValueError) as exc:
-            error = " ".join(str(exc).split())
-    detail = next((ln.strip() for ln in said() if ln.strip().lower().startswith("error")), "")
-    raise RobotError(f"cannot load URDF {path}: {detail or error}: fix the URDF (check it with check_urdf)")
