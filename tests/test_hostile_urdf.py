@@ -20,6 +20,7 @@ import pytest
 
 import pincal
 import pincal.robot.robots
+import pincal.robot.urdf_parse
 from pincal.cli import main
 from pincal.options import BUNDLED
 from pincal.robot.urdf_checks import MAX_CHAIN, MAX_JOINTS, check_urdf_structure
@@ -206,7 +207,7 @@ def test_twists_exits_2_when_pinocchio_disagrees(
     """Past the structure check (switched off here), the zero-axis arm's twists disagree with
     Pinocchio by about π: ``twists`` ends with exit 2 and one line, and prints no table (a
     refused run prints nothing on stdout)."""
-    monkeypatch.setattr(pincal.robot.robots, "check_urdf_structure", lambda text, path: None)
+    monkeypatch.setattr(pincal.robot.urdf_parse, "check_urdf_structure", lambda text, path: None)
     urdf = _urdf(tmp_path, _arm(axis="0 0 0"))
     capfd.readouterr()
     code = main(["twists", str(urdf)])

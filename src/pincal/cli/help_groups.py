@@ -35,6 +35,7 @@ GROUPS: dict[str, list[str]] = {
         "--task",
         "--pose",
         "--points",
+        "--markers",
         "--noise",
         "--joint-topic",
         "--measure-topic",

@@ -23,10 +23,10 @@ depend on the noise's size; only the pull's weight, relative to the noise, does.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import norm
 
 from pincal.identify.forward_selection import KEEP_ALL, MIN_GAIN, Design, choose_step, design, walk
 from pincal.identify.solver import Setup
@@ -37,7 +37,7 @@ from pincal.threads import parallel_map
 NULL_DRAWS = 20
 #: The guard's largest false-export rate on pure noise: that of the fixed threshold of 2
 #: standard errors on a normal statistic (2.3 %).
-ALPHA = float(norm.sf(2.0))
+ALPHA = 0.5 * math.erfc(2.0 / math.sqrt(2.0))
 #: Above this many poses the null is not drawn (its walks would take long): the fixed threshold.
 NULL_MAX_POSES = 400
 
@@ -104,7 +104,8 @@ def noise_rows(setup: Setup, n_rows: int, sigma: float, rng: np.random.Generator
         return rng.normal(0.0, sigma, n_rows)
     points, pairs = setup.data.points, problem.pairs
     along = points[pairs[:, 0]] - points[pairs[:, 1]]
-    along /= np.linalg.norm(along, axis=1, keepdims=True)
+    length = np.linalg.norm(along, axis=1, keepdims=True)  # a pose measured twice: no direction
+    along = np.divide(along, length, out=np.zeros_like(along), where=length > 0)
     eps = rng.normal(0.0, sigma / np.sqrt(2.0), points.shape)
     return np.sum(along * (eps[pairs[:, 0]] - eps[pairs[:, 1]]), axis=1)
 
