@@ -243,21 +243,7 @@ def choose(
     cause: AnyEffect | None = None
     for _ in range(MAX_ROUNDS):
         try:
-            diag = diagnose_with(
-                fit,
-                robot,
-                data,
-                model,  # type: ignore[arg-type]
-                measure,
-                folds,
-                seed,
-                payload=options.payload,
-                progress=progress,
-                quick=True,
-                params=None if params is None else list(params),
-                **options.setup(),
-                **options.fitting(),
-            )
+            diag = _diagnosis(setup, fit, options, progress, params)
         except IdentifiabilityError as exc:  # a fold too small to fit: the geometry alone, said so
             if rounds:
                 break
@@ -280,6 +266,34 @@ def choose(
     return _more_causes(chosen, setup, fit, options, progress)
 
 
+def _diagnosis(
+    setup: Setup,
+    fit: Fit,
+    options: CalibrateOptions,
+    progress: Callable[[int, int, str], None] | None,
+    params: Params,
+    **further: Any,
+) -> Diagnosis:
+    """The quick diagnosis of ``extension="auto"`` on ``setup``'s poses and the parameters
+    ``params`` (``further``: the causes already held and the step, for a further cause)."""
+    return diagnose_with(
+        fit,
+        setup.model.robot,
+        setup.data,
+        setup.model,  # type: ignore[arg-type]
+        setup.problem.measurement.kind,
+        options.folds,
+        options.seed,
+        payload=options.payload,
+        progress=progress,
+        quick=True,
+        params=None if params is None else list(params),
+        **further,
+        **options.setup(),
+        **options.fitting(),
+    )
+
+
 def _more_causes(
     choice: ModelChoice,
     setup: Setup,
@@ -291,27 +305,10 @@ def _more_causes(
     holds the causes named before it (on the parameters chosen with the first), at most
     :data:`MAX_CAUSES` in all, and each counted in the F-test's correction."""
     assert choice.extension is not None
-    robot, data, model = setup.model.robot, setup.data, setup.model
     effects, steps = choice.extension, []
     for step in range(2, MAX_CAUSES + 1):
         try:
-            diag = diagnose_with(
-                fit,
-                robot,
-                data,
-                model,  # type: ignore[arg-type]
-                setup.problem.measurement.kind,
-                options.folds,
-                options.seed,
-                payload=options.payload,
-                progress=progress,
-                quick=True,
-                params=None if choice.params is None else list(choice.params),
-                given=effects,
-                step=step,
-                **options.setup(),
-                **options.fitting(),
-            )
+            diag = _diagnosis(setup, fit, options, progress, choice.params, given=effects, step=step)
         except IdentifiabilityError:  # the folds cannot fit one more effect
             break
         if diag.cause is None:
