@@ -144,6 +144,13 @@ class ModelChoice:
             if d.cause is not None
         ]
 
+    def causes(self) -> list[dict[str, Any]]:
+        """Each named cause with its cross-validated RMS [mm] before and after it, JSON-ready."""
+        return [
+            {"cause": label, "cv_rms_mm_before": before, "cv_rms_mm_after": after}
+            for label, before, after in self.steps()
+        ]
+
     def to_dict(self) -> dict[str, Any]:
         """The report's ``choice`` object."""
         sel, diag, cv = self.selection, self.diagnosis, self.nested
@@ -159,10 +166,7 @@ class ModelChoice:
             "extension": self.extension_mode,
             "cause": self.extension.label if self.extension else "none",
             "cause_gain": self.gain,
-            "causes": [
-                {"cause": label, "cv_rms_mm_before": before, "cv_rms_mm_after": after}
-                for label, before, after in self.steps()
-            ],
+            "causes": self.causes(),
             "diagnosis": None if diag is None else diag.to_dict(),
             "rounds": [r.to_dict() for r in self.rounds],
             "nested": None

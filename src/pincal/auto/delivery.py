@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from pincal.data.dataset import Dataset
-from pincal.export.calibrated_robot import CalibratedRobot, load_calibration
+from pincal.export.calibrated_robot import CalibratedRobot, load_calibration, robot_from_urdf
 from pincal.export.urdf_writer import corrected_files, corrected_urdf
 from pincal.identify.calibration import Calibration
 from pincal.identify.evaluation import ErrorStats, evaluate
@@ -37,15 +37,13 @@ from pincal.identify.measurements import Problem
 from pincal.identify.solver import Setup, assess, register, solve
 from pincal.kinematics.effects import AnyEffect
 from pincal.kinematics.mdh import make_model
-from pincal.robot.robots import Robot, load_robot
+from pincal.robot.robots import Robot
 
 
 def corrected_robot(cal: Calibration) -> Robot:
-    """The chain of the corrected URDF of ``cal``, loaded as a consumer loads it."""
-    with tempfile.TemporaryDirectory(prefix="pincal-") as folder:
-        path = Path(folder) / "corrected.urdf"
-        path.write_bytes(corrected_urdf(cal))
-        return load_robot(path, tip=cal.robot.tip_spec, joints=cal.robot.joint_names)
+    """The chain of ``cal``'s own geometry (the full model's, whatever its URDF alone holds)
+    written as a URDF and loaded as a consumer loads it: what its effects' gravity torques use."""
+    return robot_from_urdf(corrected_urdf(replace(cal, urdf_fit=None)), cal.robot)
 
 
 def on_robot(extension: AnyEffect, robot: Robot) -> AnyEffect:

@@ -178,9 +178,8 @@ def _delivered(
     :class:`~pincal.auto.settings.CalibrateOptions`)."""
     if setup.problem.extension is None or opts.deliver == "none":
         return replace(found.assessed(test), choice=choice)
-    full = replace(found.assessed(test), choice=choice)
     if opts.deliver == "joint":
-        return settled(full, setup.data, test)
+        return settled(replace(found.assessed(test), choice=choice), setup.data, test)
     problem = setup.problem
     kind = problem.measurement.kind
     geometry = set_up(problem.model.robot, setup.data, problem.model, kind, **opts.setup())
@@ -188,7 +187,8 @@ def _delivered(
     kept = geometric.params
     if opts.deliver == "complete":  # the URDF: the geometry alone; the sidecar: the full model
         alone = replace(fit(geometry, kept, **opts.fitting()).assessed(test), choice=geometric)
-        return replace(settled(full, setup.data, test), urdf_fit=alone)
+        full = settled(replace(found.assessed(test), choice=choice), setup.data, test)
+        return replace(full, urdf_fit=alone)
     joint = found if kept == wanted else fit(setup, kept, **opts.fitting())  # the same parameters: reused
     return _balanced(setup, geometry, kept, joint, geometric, test, opts)
 

@@ -122,7 +122,7 @@ def _write_json(path: Path, cal: Calibration, choice: ModelChoice, found: Outcom
         **result.to_dict(),
         "extended": {"cv_rms_mm": last.extended_cv_rms_mm},
         "gain": choice.gain if result.cause is not None else 1.0,
-        "causes": choice.to_dict()["causes"],
+        "causes": choice.causes(),
         "plausibility": cal.plausibility.to_dict(),
         "residual": found.residual.to_dict(),
     }

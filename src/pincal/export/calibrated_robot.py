@@ -146,10 +146,16 @@ def _tool(entry: Any, markers: dict[str, tuple[str, np.ndarray]] | None) -> pin.
 
 def _moved(robot: Robot, moves: dict[str, pin.SE3]) -> Robot:
     """``robot`` with each joint origin of ``moves`` times its transform, loaded as a URDF."""
+    return robot_from_urdf(moved_origins(robot_source(robot), moves), robot)
+
+
+def robot_from_urdf(document: bytes, like: Robot) -> Robot:
+    """The chain of ``like`` (its tip or markers' frames, its joints) in the URDF ``document``,
+    loaded as a consumer loads the file."""
     with tempfile.TemporaryDirectory(prefix="pincal-") as folder:
-        path = Path(folder) / "full-model.urdf"
-        path.write_bytes(moved_origins(robot_source(robot), moves))
-        return load_robot(path, tip=robot.tip_spec, joints=robot.joint_names)
+        path = Path(folder) / "robot.urdf"
+        path.write_bytes(document)
+        return load_robot(path, tip=like.tip_spec, joints=like.joint_names)
 
 
 def load_calibration(

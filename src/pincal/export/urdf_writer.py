@@ -135,7 +135,7 @@ def corrected_urdf(cal: Calibration, add_frame: str | None = None) -> bytes:
         tool = cal.split()[2]
         tool = tool if cal.measurement.measure.tool_dof == 6 else pin.SE3(np.eye(3), tool.translation)
         add_tool_frame(root, robot.tip, add_frame, tool, ball is not None)
-    return _prolog(robot_source(robot)) + etree.tostring(root, encoding="UTF-8") + b"\n"
+    return _document_head(robot) + etree.tostring(root, encoding="UTF-8") + b"\n"
 
 
 def moved_origins(source: bytes, moves: dict[str, pin.SE3]) -> bytes:
@@ -166,13 +166,14 @@ def complete(cal: Calibration) -> dict[str, Any] | None:
     None when the URDF holds the full model's geometry."""
     if cal.urdf_fit is None:
         return None
-    written, full = corrected_origins(cal.written), corrected_origins(cal)
-    given = {j.get("name"): j.find("origin") for j in _read(cal.robot).findall("joint")}
+    root = _read(cal.robot)  # the input URDF, read once: both geometries are corrections of it
+    written, full = corrected_origins(cal.written, root), corrected_origins(cal, root)
+    given = {j.get("name"): j.find("origin") for j in root.findall("joint")}
     moves = {
         name: _as_written(written[name], given[name]).actInv(full[name]) for name in cal.robot.joint_names
     }
     _, reg, tool = cal.split()
-    if cal.measurement.measure.fixed_points and _ball_joint(_read(cal.robot), cal) is not None:
+    if cal.measurement.measure.fixed_points and _ball_joint(root, cal) is not None:
         ball = cal.written.split()[2].translation  # the written tip is the URDF alone's ball
         tool = pin.SE3(np.eye(3), tool.translation - ball)
     return {
@@ -195,11 +196,25 @@ def _ball_joint(root: etree._Element, cal: Calibration) -> etree._Element | None
     return None
 
 
+_BOM = b"\xef\xbb\xbf"  # a UTF-8 byte-order mark
+
+
+def _document_head(robot: Robot) -> bytes:
+    """The head of the robot's URDF (:func:`_prolog`), with the byte-order mark its file starts
+    with: the loader drops it from the text it parses, and the corrected file keeps it."""
+    try:
+        with open(robot.urdf_path, "rb") as fh:
+            bom = fh.read(len(_BOM)) == _BOM
+    except OSError:
+        bom = False
+    return (_BOM if bom else b"") + _prolog(robot_source(robot)).removeprefix(_BOM)
+
+
 def _prolog(source: bytes) -> bytes:
     """The input's bytes before the root element (declaration, comments, doctype), kept as
     written: everything before the first ``<`` that opens an element (the root's start tag may
     span several lines, with its attributes on the next)."""
-    pos = 3 if source.startswith(b"\xef\xbb\xbf") else 0  # a UTF-8 byte-order mark
+    pos = len(_BOM) if source.startswith(_BOM) else 0
     ends = {b"<?": b"?>", b"<!--": b"-->", b"<!": b">"}
     while True:
         while source[pos : pos + 1].isspace():

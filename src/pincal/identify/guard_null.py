@@ -30,6 +30,7 @@ import numpy as np
 
 from pincal.identify.forward_selection import KEEP_ALL, MIN_GAIN, Design, choose_step, design, walk
 from pincal.identify.solver import Setup
+from pincal.identify.uncertainty import pair_directions
 from pincal.threads import parallel_map
 
 #: Draws of pure noise through the selection and the guard: with the largest as the threshold,
@@ -103,9 +104,7 @@ def noise_rows(setup: Setup, n_rows: int, sigma: float, rng: np.random.Generator
     if not problem.measurement.measure.by_pairs:
         return rng.normal(0.0, sigma, n_rows)
     points, pairs = setup.data.points, problem.pairs
-    along = points[pairs[:, 0]] - points[pairs[:, 1]]
-    length = np.linalg.norm(along, axis=1, keepdims=True)  # a pose measured twice: no direction
-    along = np.divide(along, length, out=np.zeros_like(along), where=length > 0)
+    along = pair_directions(points, pairs)
     eps = rng.normal(0.0, sigma / np.sqrt(2.0), points.shape)
     return np.sum(along * (eps[pairs[:, 0]] - eps[pairs[:, 1]]), axis=1)
 

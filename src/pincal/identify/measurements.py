@@ -84,6 +84,8 @@ class Problem:
         none = np.empty((len(data), 0))
         self.regressors = extension.regressors(data.q, data.moves()) if extension else none
         self.param_joints = extension.param_joints if extension else np.zeros(0, dtype=int)
+        self.onto_joints = np.zeros((len(self.param_joints), data.q.shape[1]))  # each parameter's joint
+        self.onto_joints[np.arange(len(self.param_joints)), self.param_joints] = 1.0
         self.pairs = np.empty((0, 2), dtype=int)
         self.measured_distances = np.empty(0)
         if measurement.measure.by_pairs:
@@ -140,9 +142,7 @@ class Problem:
         if self.extension is None:
             return self.data.q
         moved = self.regressors * theta[self.model.n_params : self.n_model]
-        onto = np.zeros((len(self.param_joints), self.data.q.shape[1]))
-        onto[np.arange(len(self.param_joints)), self.param_joints] = 1.0  # each parameter's joint
-        return self.data.q + moved @ onto
+        return self.data.q + moved @ self.onto_joints
 
     def target_frames(
         self, theta: np.ndarray, in_instrument: bool = False
@@ -249,11 +249,13 @@ class Problem:
                     add(k_rot, k_pos, twists[k][:, acting], geo[acting], frames.acting(k))
         ext = np.flatnonzero((cols >= n_geo) & (cols < self.n_model))
         joints = self.param_joints[cols[ext] - n_geo]
+        axes = self.model.chain(theta[:n_geo]).axes if ext.size else np.zeros((0, 6))  # model's joint frames
         for index in np.unique(joints):  # each moved joint's column, times each pose's regressor
             here = ext[joints == index]
             k = 2 * int(index) + 1
-            axis = self.model.chain(theta[:n_geo]).axes[index]  # in the model's joint frame
-            v, w = columns(frames.rotations[k], frames.translations[k], axis[:, None] * np.ones(here.size))
+            v, w = columns(
+                frames.rotations[k], frames.translations[k], axes[index][:, None] * np.ones(here.size)
+            )
             v, w = branch_only(frames, k, v, w)
             regressors = self.regressors[:, cols[here] - n_geo][:, None, :]
             jac_v[:, :, here] = v * regressors

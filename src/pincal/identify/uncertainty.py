@@ -60,10 +60,7 @@ def pose_std(
     ``Σ r² / Σ (1 - h)`` (``h`` the hat matrix's diagonal)."""
     std = np.zeros(problem.n_params)
     scale = scale[free]
-    jac = problem.jacobian(theta, free) * scale
-    res = problem.residuals(theta)
-    pen = np.arange(int(free.sum())) < int(free[: problem.model.n_params].sum())
-    inverse = np.linalg.pinv(jac.T @ jac + weight**2 * np.diag(pen.astype(float)))
+    jac, res, inverse = _pulled_normal(problem, scale, weight, theta, free)
     left = 1.0 - np.einsum("ij,jk,ik->i", jac, inverse, jac)
     width = problem.measurement.measure.width
     turned = (np.arange(len(res)) % width) >= 3
@@ -75,13 +72,31 @@ def pose_std(
     return std
 
 
+def _pulled_normal(
+    problem: Problem, scale: np.ndarray, weight: float, theta: np.ndarray, free: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The Jacobian of the unknowns ``free`` in natural units (``scale``, theirs), the residual,
+    and ``M = (JᵀJ + w²P)⁻¹`` (``P`` the pulled geometric corrections)."""
+    jac = problem.jacobian(theta, free) * scale
+    pen = np.arange(int(free.sum())) < int(free[: problem.model.n_params].sum())
+    inverse = np.linalg.pinv(jac.T @ jac + weight**2 * np.diag(pen.astype(float)))
+    return jac, problem.residuals(theta), inverse
+
+
+def pair_directions(points: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+    """Each pair's unit vector from its second measured point to its first (zero for a pose
+    measured twice, whose distance has no direction)."""
+    along = points[pairs[:, 0]] - points[pairs[:, 1]]
+    length = np.linalg.norm(along, axis=1, keepdims=True)
+    return np.divide(along, length, out=np.zeros_like(along), where=length > 0)
+
+
 def carried_to_points(problem: Problem, jac: np.ndarray) -> np.ndarray:
     """``Aᵀ J`` (3N, k) for the map ``A`` (pairs, 3N) from noise on the measured points to the
     pairs' distance rows (row ``p`` holds the pair's unit vector ``u_p`` at its first point's
     coordinates and ``-u_p`` at its second's), without forming ``A``."""
     pairs, points = problem.pairs, problem.data.points
-    along = points[pairs[:, 0]] - points[pairs[:, 1]]
-    along /= np.linalg.norm(along, axis=1, keepdims=True)
+    along = pair_directions(points, pairs)
     out = np.zeros((len(points), 3, jac.shape[1]))
     each = along[:, :, None] * jac[:, None, :]  # (pairs, 3, k)
     np.add.at(out, pairs[:, 0], each)
@@ -99,10 +114,7 @@ def pair_std(
     come from, not as N(N-1)/2 independent rows."""
     std = np.zeros(problem.n_params)
     scale = scale[free]
-    jac = problem.jacobian(theta, free) * scale
-    res = problem.residuals(theta)
-    pen = np.arange(int(free.sum())) < int(free[: problem.model.n_params].sum())
-    inverse = np.linalg.pinv(jac.T @ jac + weight**2 * np.diag(pen.astype(float)))
+    jac, res, inverse = _pulled_normal(problem, scale, weight, theta, free)
     carried = carried_to_points(problem, jac)  # Aᵀ J; tr(A Aᵀ) = 2 per pair (two unit vectors)
     left = 2.0 * len(res) - float(np.trace(inverse @ carried.T @ carried))
     sigma2 = float(res @ res) / max(left, 1e-12)
