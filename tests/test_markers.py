@@ -19,6 +19,7 @@ import pinocchio as pin
 import pytest
 from cli_run import run
 from contract_markers import rms_mm
+from finite_differences import residual_jacobian_fd
 from marker_simulation import simulate, write
 
 import pincal
@@ -74,32 +75,11 @@ def test_a_marker_with_some_cells_empty_is_refused(
 def test_marker_jacobian_matches_finite_differences(get_robot, measure: str) -> None:
     robot = get_robot("ur5")
     rng = np.random.default_rng(4)
-    q = np.repeat(robot.random_configurations(5, rng), 2, axis=0)
-    marker = np.tile([0, 1], 5)
-    data = pincal.Dataset(
-        robot.joint_names,
-        q,
-        rng.normal(0, 1, (10, 3)),
-        rows=np.repeat(np.arange(1, 6), 2),
-        marker=marker,
-        marker_names=("a", "b"),
-    )
-    pin.seed(4)
-    meas = Measurement(
-        measure,
-        instrument_T_base=pin.SE3.Random(),
-        markers=("a", "b"),
-        marker_points=rng.normal(0, 0.1, (2, 3)),
-    )
+    data, meas = _two_markers(robot, measure, 5, ("a", "b"), rng)
     problem = Problem(make_model("placements", robot), meas, data)
     theta = problem.initial_theta() + rng.normal(0, 0.01, problem.n_params)
     jac = problem.jacobian(theta)
-    fd = np.empty_like(jac)
-    for k in range(problem.n_params):
-        step = np.zeros(problem.n_params)
-        step[k] = 1e-6
-        fd[:, k] = (problem.residuals(theta + step) - problem.residuals(theta - step)) / 2e-6
-    assert np.abs(jac - fd).max() <= 1e-6 * np.abs(jac).max()
+    assert np.abs(jac - residual_jacobian_fd(problem, theta)).max() <= 1e-6 * np.abs(jac).max()
     assert problem.names[-6:] == (
         "marker.a.x",
         "marker.a.y",
@@ -190,33 +170,12 @@ def test_tree_chain_is_the_union_of_the_branches_and_matches_pinocchio() -> None
 def test_tree_jacobian_matches_finite_differences(measure: str) -> None:
     robot = pincal.load_robot(_talos(), tip=TALOS_TIP)
     rng = np.random.default_rng(5)
-    q = np.repeat(robot.random_configurations(4, rng), 2, axis=0)
-    data = pincal.Dataset(
-        robot.joint_names,
-        q,
-        rng.normal(0, 1, (8, 3)),
-        rows=np.repeat(np.arange(1, 5), 2),
-        marker=np.tile([0, 1], 4),
-        marker_names=("1", "2"),
-    )
-    pin.seed(5)
-    meas = Measurement(
-        measure,
-        instrument_T_base=pin.SE3.Random(),
-        markers=("1", "2"),
-        marker_points=rng.normal(0, 0.1, (2, 3)),
-        marker_tips=(0, 1),
-    )
+    data, meas = _two_markers(robot, measure, 4, ("1", "2"), rng, tips=(0, 1))
     for kind in ("placements", "offsets"):
         problem = Problem(make_model(kind, robot), meas, data)
         theta = problem.initial_theta() + rng.normal(0, 0.01, problem.n_params)
         jac = problem.jacobian(theta)
-        fd = np.empty_like(jac)
-        for k in range(problem.n_params):
-            step = np.zeros(problem.n_params)
-            step[k] = 1e-6
-            fd[:, k] = (problem.residuals(theta + step) - problem.residuals(theta - step)) / 2e-6
-        assert np.abs(jac - fd).max() <= 1e-6 * np.abs(jac).max()
+        assert np.abs(jac - residual_jacobian_fd(problem, theta)).max() <= 1e-6 * np.abs(jac).max()
     left = [i for i, n in enumerate(problem.names) if n.startswith("arm_left_1_joint.")]
     if measure == "position":  # a left-arm joint moves no right-hand row
         assert np.all(jac[np.repeat(data.marker == 1, 3)][:, left] == 0.0)
@@ -359,3 +318,33 @@ def test_a_row_with_no_marker_seen_is_left_out(tmp_path: Path) -> None:
     data = read_csv(tmp_path / "m.csv", names)
     assert data.n_poses == 9 and 5 not in set(data.row_numbers)
     assert len(data) == int((~np.isnan(points[:, :, 0])).sum())
+
+
+def _two_markers(
+    robot: pincal.Robot,
+    measure: str,
+    n: int,
+    names: tuple[str, str],
+    rng: np.random.Generator,
+    tips: tuple[int, ...] = (),
+) -> tuple[pincal.Dataset, Measurement]:
+    """``n`` random poses with two markers each (random points [m]), and a measurement of
+    ``measure`` with a random registration and marker points (on the frames ``tips``)."""
+    q = np.repeat(robot.random_configurations(n, rng), 2, axis=0)
+    data = pincal.Dataset(
+        robot.joint_names,
+        q,
+        rng.normal(0, 1, (2 * n, 3)),
+        rows=np.repeat(np.arange(1, n + 1), 2),
+        marker=np.tile([0, 1], n),
+        marker_names=names,
+    )
+    pin.seed(int(rng.integers(1 << 16)))
+    meas = Measurement(
+        measure,
+        instrument_T_base=pin.SE3.Random(),
+        markers=names,
+        marker_points=rng.normal(0, 0.1, (2, 3)),
+        marker_tips=tips,
+    )
+    return data, meas

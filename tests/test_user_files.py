@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from cli_run import one_error_line, run
+from test_tool import PAPER_POSES as TCP_POSES
 
 import pincal
 import pincal.plausibility.readings as readings
@@ -194,16 +195,6 @@ def test_a_payload_for_compliance_is_not_said(capsys: pytest.CaptureFixture[str]
     extend = ("--extend", "joint_compliance:shoulder_lift_joint")
     code, _, err = run(capsys, "calibrate", "ur5", positions, *FAST[:4], *extend, "--payload", "2,0,0,0.1")
     assert code == 0 and "--payload" not in err, err
-
-
-TCP_POSES = (  # Xiong 2012's flange poses x, y, z [mm], a, b, c [deg]; rows 4-6 the Z/X rows
-    (1028.29, 233.29, 1432.98, -156.2, 44.8, -126.6),
-    (1118.69, -231.99, 1478.85, 153.6, 19.0, 136.1),
-    (1129.45, 25.0, 1564.0, -175.1, 29.4, -175.0),
-    (983.98, 0.39, 1502.31, 179.8, 54.3, 180.0),
-    (605.47, 0.39, 1502.31, 179.8, 54.3, 180.0),
-    (983.98, 0.39, 1122.24, 179.8, 54.3, 180.0),
-)
 
 
 def _tcp_file(path: Path, header: str = "x,y,z,a,b,c", factor: float = 1.0, rows: int = 6) -> Path:

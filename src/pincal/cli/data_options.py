@@ -32,12 +32,18 @@ def add_lock(cmd: argparse.ArgumentParser) -> None:
 
 def add_program_quaternion_order(cmd: argparse.ArgumentParser) -> None:
     """``--quaternion-order`` for ``compensate`` (its targets' ``qw,qx,qy,qz`` columns)."""
+    _add_quaternion_order(cmd, "the target columns", "as calibrate's option")
+
+
+def _add_quaternion_order(cmd: argparse.ArgumentParser, columns: str, xyzw_for: str) -> None:
+    """``--quaternion-order``: which of ``columns`` qw,qx,qy,qz hold what (``xyzw_for``: when the
+    other order is the one to give)."""
     cmd.add_argument(
         "--quaternion-order",
         choices=QUATERNION_ORDERS,
         default="wxyz",
-        help="wxyz (default): the target columns qw,qx,qy,qz hold what their names say; xyzw: the four "
-        "quaternion columns, left to right, hold x, y, z, w (as calibrate's option)",
+        help=f"wxyz (default): {columns} qw,qx,qy,qz hold what their names say; xyzw: the four "
+        f"quaternion columns, left to right, hold x, y, z, w ({xyzw_for})",
     )
 
 
@@ -57,13 +63,7 @@ def check_lock(chain: Robot, lock: tuple[str, ...]) -> None:
 
 def add_plausibility_options(cmd: argparse.ArgumentParser) -> None:
     """``--quaternion-order`` and ``--accept-implausible``, shared by the data-reading commands."""
-    cmd.add_argument(
-        "--quaternion-order",
-        choices=QUATERNION_ORDERS,
-        default="wxyz",
-        help="wxyz (default): the columns qw,qx,qy,qz hold what their names say; xyzw: the four "
-        "quaternion columns, left to right, hold x, y, z, w (data exported as x,y,z,w)",
-    )
+    _add_quaternion_order(cmd, "the columns", "data exported as x,y,z,w")
     cmd.add_argument(
         "--accept-implausible",
         action="store_true",
