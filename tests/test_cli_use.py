@@ -11,6 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 import pytest
 
 import pincal
@@ -78,7 +79,8 @@ def test_compensate_reaches_nominal_targets_and_names_failed_rows(
     code, text, err = _run(capsys, "compensate", "ur5", urdf, program, "-o", out)
     assert code == 0, err
     assert "row 5: unreachable" in text
-    assert "11 of 12" in text
+    assert "compensated 11 of 12 rows (pose task): the tool within " in text  # issue 43
+    assert "mrad of the pose the nominal URDF gave it; largest joint change" in text
 
     compensated = read_table(out, nominal.joint_names, "joints")
     cal = pincal.load_calibration(urdf)
@@ -89,7 +91,35 @@ def test_compensate_reaches_nominal_targets_and_names_failed_rows(
         wanted = nominal.frame_placement(q[i]) * cal.tool
         reached = cal.tool_pose(compensated[i])
         assert np.linalg.norm(reached.translation - wanted.translation) < 1e-6  # [m]
+        assert np.linalg.norm(pin.log3(wanted.rotation.T @ reached.rotation)) < 1e-5  # [rad], issue 43
         assert np.abs(compensated[i] - q[i]).max() > 1e-6  # the calibration changed something
+
+
+def test_compensate_position_task_says_how_far_the_orientation_turned(
+    capsys: pytest.CaptureFixture[str],
+    tmp_path: Path,
+    calibration: tuple[Path, pincal.simulation.truth.TrueRobot],
+) -> None:
+    """Issue 43: ``--task position`` keeps the point only, and the summary gives the orientation's
+    largest turn, the one the written commands make."""
+    urdf, _ = calibration
+    nominal = pincal.load_robot("ur5")
+    q = nominal.random_configurations(8, np.random.default_rng(1), 0.1)
+    program = _write_joints(tmp_path / "program.csv", nominal.joint_names, np.rad2deg(q))
+    out = tmp_path / "compensated.csv"
+    code, text, err = _run(
+        capsys, "compensate", "ur5", urdf, program, "-o", out, "--degrees", "--task", "position"
+    )
+    assert code == 0, err
+    cal = pincal.load_calibration(urdf)
+    compensated = np.deg2rad(read_table(out, nominal.joint_names, "joints"))
+    turns = []
+    for q0, qc in zip(q, compensated):
+        wanted, reached = nominal.frame_placement(q0) * cal.tool, cal.tool_pose(qc)
+        assert np.linalg.norm(reached.translation - wanted.translation) < 1e-6
+        turns.append(np.linalg.norm(pin.log3(wanted.rotation.T @ reached.rotation)))
+    assert max(turns) > 1e-4  # the calibration turned the tool, and the position task let it turn
+    assert f"the orientation is not kept: it turned by up to {max(turns) * 1e3:.3f} mrad" in text
 
 
 def test_compensate_exits_2_when_no_row_can_be(

@@ -5,14 +5,23 @@ corrected URDF and its sidecar, loads them back with :func:`load_calibration`, a
 program of 200 random joint rows. The true robot is then driven with the compensated commands,
 and its tool is compared, in the calibration's base frame, with where the nominal URDF put it.
 A second round measures 60 more planned poses and calibrates the round-1 URDF on all of them.
+
+Issue 43: compensation reaches the nominal *pose* of the tool (its point and its orientation) by
+default, checked in plain Pinocchio on the written URDF, on every row of a plan and on random rows,
+for UR5 and Panda calibrated from position and from pose data; every row well inside the joint
+limits and away from singularities is compensated; a redundant arm takes the smallest joint
+change, an arm of five joints keeps the point and turns the tool as little as it can, and the
+position task says how far the orientation moved.
 """
 
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 import pytest
 
 import pincal
@@ -20,6 +29,7 @@ from pincal import CalibratedRobot, Compensation, compensate_program, load_calib
 from pincal.data.dataset import read_table
 from pincal.data.program import Targets, read_program
 from pincal.export.compensate import write_program
+from pincal.options import ROTATION_WEIGHT
 from pincal.planning.plan import candidate_poses, plan_poses
 from pincal.simulation.truth import hide_effect
 
@@ -201,3 +211,200 @@ def test_program_files(get_robot, tmp_path) -> None:
         load_calibration(urdf)
     with pytest.raises(pincal.DataError, match="joints"):
         compensate_program(robot, loaded, q[:, :3])
+
+
+# --- issue 43: the nominal pose of the tool, checked in plain Pinocchio --------------------------
+
+#: (robot, what the calibration measured) of the acceptance.
+POSE_CASES = [(name, measure) for name in ("ur5", "panda") for measure in ("position", "pose")]
+#: A row whose nominal joints lie this far inside every limit [rad] ...
+MARGIN = 0.1
+#: ... and whose tool Jacobian has σmin/σmax at least this (orientation rows weighted by
+#: ROTATION_WEIGHT, as the compensation weighs them) must be compensated.
+AWAY = 0.03
+
+
+def _plain_tool(
+    urdf: Path, tip: str, names: tuple[str, ...], tool: pin.SE3
+) -> Callable[[np.ndarray], pin.SE3]:
+    """``q -> base_T_tool`` of a URDF loaded by Pinocchio alone (the whole model, other joints at
+    their neutral values), with ``tool`` on the frame ``tip``."""
+    model = pin.buildModelFromUrdf(str(urdf))
+    data = model.createData()
+    frame = model.getFrameId(tip)
+    joints = [model.joints[model.getJointId(n)] for n in names]
+
+    def pose(q: np.ndarray) -> pin.SE3:
+        conf = pin.neutral(model)
+        for joint, value in zip(joints, q):
+            if joint.nq == 2:  # continuous: (cos, sin)
+                conf[joint.idx_q : joint.idx_q + 2] = np.cos(value), np.sin(value)
+            else:
+                conf[joint.idx_q] = value
+        pin.framesForwardKinematics(model, data, conf)
+        return data.oMf[frame] * tool
+
+    return pose
+
+
+def _sidecar_tool(urdf: Path) -> pin.SE3:
+    """``tip_T_tool`` as the sidecar writes it."""
+    side = json.loads(urdf.with_name(urdf.stem + ".calibration.json").read_text())
+    matrix = np.array(side["tip_T_tool"]["matrix"], dtype=float)
+    return pin.SE3(matrix[:3, :3], matrix[:3, 3])
+
+
+def _away(robot: pincal.Robot, q: np.ndarray) -> np.ndarray:
+    """(N,) rows at least MARGIN inside every joint limit and AWAY from every singularity."""
+    inside = np.all((q - robot.lower >= MARGIN) & (robot.upper - q >= MARGIN), axis=1)
+    ratios = []
+    for row in q:
+        jac = robot.frame_jacobian(row)
+        jac[3:] *= ROTATION_WEIGHT
+        sv = np.linalg.svd(jac, compute_uv=False)
+        ratios.append(sv[-1] / sv[0])
+    return inside & (np.array(ratios) >= AWAY)
+
+
+def _pose_errors(nominal, calibrated, q0: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per row, the distance [m] and the angle [rad] between the nominal tool at ``q0`` and the
+    calibrated tool at ``q``."""
+    pos, rot = np.zeros(len(q)), np.zeros(len(q))
+    for i, (a, b) in enumerate(zip(q0, q)):
+        want, got = nominal(a), calibrated(b)
+        pos[i] = np.linalg.norm(got.translation - want.translation)
+        rot[i] = np.linalg.norm(pin.log3(want.rotation.T @ got.rotation))
+    return pos, rot
+
+
+#: The experiments of :func:`_planned`, by case, made once per test session.
+_PLANNED: dict[tuple[str, str], dict] = {}
+
+
+def _planned(name: str, measure: str, folder: Path) -> dict:
+    """A plan of 30 poses measured on a seeded true robot and calibrated; the program is the plan
+    and 60 random rows; the nominal and calibrated tools in plain Pinocchio."""
+    if (name, measure) in _PLANNED:
+        return _PLANNED[name, measure]
+    robot = pincal.load_robot(name)
+    truth = pincal.random_truth(robot, 7)
+    plan = plan_poses(robot, 30, measure=measure, seed=1, candidates=300)
+    rot = 1.5e-4 if measure == "pose" else None
+    fit = truth.measure(plan.q, 3e-5, rot, 2)
+    cal = pincal.calibrate(robot, fit, "placements", measure)
+    urdf, _ = pincal.write_corrected_urdf(cal, folder / f"{name}_{measure}.urdf")
+    loaded = load_calibration(urdf)
+    tool = _sidecar_tool(urdf)
+    program = np.vstack([plan.q, robot.random_configurations(60, np.random.default_rng(3), 0.02)])
+    _PLANNED[name, measure] = {
+        "robot": robot,
+        "loaded": loaded,
+        "program": program,
+        "n_plan": len(plan.q),
+        "nominal": _plain_tool(robot.urdf_path, robot.tip, robot.joint_names, tool),
+        "calibrated": _plain_tool(urdf, robot.tip, robot.joint_names, tool),
+        "comp": compensate_program(robot, loaded, program),
+    }
+    return _PLANNED[name, measure]
+
+
+@pytest.fixture
+def planned(request, tmp_path_factory) -> dict:
+    """:func:`_planned` for the test's parameter ``case`` (robot, measure)."""
+    name, measure = request.node.callspec.params["case"]
+    return _planned(name, measure, tmp_path_factory.mktemp(f"{name}_{measure}"))
+
+
+@pytest.mark.parametrize("case", POSE_CASES, ids="-".join)
+def test_compensation_reaches_the_nominal_pose(case, planned) -> None:
+    """Every row compensated puts the tool within 1 µm and 0.01 mrad of the pose the nominal URDF
+    gave it (plain Pinocchio on the written files); every row well inside the limits and away from
+    singularities is compensated, with a small joint change."""
+    comp, program, robot = planned["comp"], planned["program"], planned["robot"]
+    ok = comp.ok
+    pos, rot = _pose_errors(planned["nominal"], planned["calibrated"], program[ok], comp.q[ok])
+    assert pos.max() <= 1e-6 and rot.max() <= 1e-5, (pos.max(), rot.max())
+    assert comp.task == "pose"
+    away = _away(robot, program)
+    assert away[: planned["n_plan"]].sum() >= 10 and away.sum() >= 40  # the check has rows to check
+    refused = np.flatnonzero(away & ~ok)
+    assert not refused.size, [comp.failures()[list(np.flatnonzero(~ok)).index(i)] for i in refused]
+    assert np.abs(comp.joint_change[away]).max() < 0.1  # [rad]: a robot within mm of its URDF
+    # the library's own figures are the plain ones, and the summary gives them
+    np.testing.assert_allclose(comp.position_error[ok], pos, atol=1e-9)
+    np.testing.assert_allclose(comp.rotation_error[ok], rot, atol=1e-9)
+    summary = comp.summary()
+    assert "pose task" in summary and "mrad" in summary and "largest joint change" in summary
+    for line in comp.failures():  # a refused row is at a singularity or out of reach, and says so
+        assert ": singular: near a singularity" in line or ": unreachable: out of reach" in line
+
+
+@pytest.mark.parametrize("case", POSE_CASES, ids="-".join)
+def test_position_task_keeps_the_point_and_says_how_far_the_orientation_moved(case, planned) -> None:
+    comp_pose, program = planned["comp"], planned["program"]
+    comp = compensate_program(planned["robot"], planned["loaded"], program, task="position")
+    assert comp.task == "position" and comp.ok.all(), comp.failures()
+    pos, rot = _pose_errors(planned["nominal"], planned["calibrated"], program, comp.q)
+    assert pos.max() <= 1e-6
+    np.testing.assert_allclose(comp.rotation_error, rot, atol=1e-9)
+    assert rot.max() > 1e-4  # the orientation did move: by what the calibration changed
+    assert f"it turned by up to {rot.max() * 1e3:.3f} mrad" in comp.summary()
+    # the smallest joint change that keeps the point is no larger than one that keeps the pose
+    both = comp_pose.ok
+    change = np.linalg.norm(comp.joint_change[both], axis=1)
+    assert np.all(change <= np.linalg.norm(comp_pose.joint_change[both], axis=1) * (1 + 1e-6) + 1e-12)
+
+
+@pytest.mark.parametrize("case", [c for c in POSE_CASES if c[0] == "panda"], ids="-".join)
+def test_redundant_arm_takes_the_smallest_joint_change(case, planned) -> None:
+    """Panda, 7 joints: at the compensated commands q of a row away from singularities, q - q0 has
+    no part along the self-motion (the null space of the tool's Jacobian): no other commands
+    reaching the pose are nearer q0."""
+    assert planned["robot"].n_joints == 7
+    comp, program, loaded = planned["comp"], planned["program"], planned["loaded"]
+    model, fid = loaded.tool_frame
+    data = model.createData()
+    for i in np.flatnonzero(comp.ok & _away(planned["robot"], program)):
+        jac = pin.computeFrameJacobian(
+            model, data, loaded.robot.configuration(comp.q[i]), fid, pin.LOCAL_WORLD_ALIGNED
+        )
+        null = np.eye(jac.shape[1]) - np.linalg.pinv(jac) @ jac
+        change = comp.q[i] - program[i]
+        assert np.linalg.norm(null @ change) <= 1e-6 * np.linalg.norm(change) + 1e-12, i
+
+
+def test_five_joints_keep_the_point_and_turn_the_tool_least(get_robot, tmp_path) -> None:
+    """A five-joint arm cannot follow every 6-D pose: the point is kept, and the orientation is the
+    closest the remaining joints allow (no move that keeps the point turns the tool nearer)."""
+    robot = get_robot("mrres5")
+    truth, fit, _ = pincal.simulate(robot, n_fit=40, n_test=10, seed=1)
+    urdf, _ = pincal.write_corrected_urdf(pincal.calibrate(robot, fit, "placements"), tmp_path / "m.urdf")
+    loaded = load_calibration(urdf)
+    program = robot.random_configurations(20, np.random.default_rng(4), 0.1)
+    comp = compensate_program(robot, loaded, program)
+    point = compensate_program(robot, loaded, program, task="position")
+    assert comp.task == "pose" and comp.ok.all(), comp.failures()
+    assert "as close as 5 joints allow" in comp.summary()
+    assert comp.position_error.max() <= 1e-9
+    assert np.all(comp.rotation_error <= point.rotation_error + 1e-12)
+    model, fid = loaded.tool_frame
+    data = model.createData()
+    for i, q in enumerate(comp.q):  # first-order optimality: min |log3(R* Rᵀ)|² with the point held
+        want = robot.frame_placement(program[i]) * loaded.tool
+        jac = pin.computeFrameJacobian(model, data, robot.configuration(q), fid, pin.LOCAL_WORLD_ALIGNED)
+        turn = want.rotation @ data.oMf[fid].rotation.T
+        e_r = pin.log3(turn)
+        keep_point = np.linalg.svd(jac[:3])[2][3:].T  # the joint motions that hold the point (n, n-3)
+        gradient = keep_point.T @ (pin.Jlog3(turn) @ jac[3:]).T @ e_r
+        assert np.linalg.norm(gradient) <= 1e-6 * np.linalg.norm(e_r), i
+
+
+def test_pose_task_needs_oriented_targets(get_robot, tmp_path) -> None:
+    robot = get_robot("ur5")
+    truth, fit, _ = pincal.simulate(robot, n_fit=40, n_test=10, seed=5)
+    urdf, _ = pincal.write_corrected_urdf(pincal.calibrate(robot, fit, "placements"), tmp_path / "c.urdf")
+    loaded = load_calibration(urdf)
+    targets = Targets(np.array([[0.4, 0.1, 0.3]]))
+    assert compensate_program(robot, loaded, targets).task == "position"
+    with pytest.raises(pincal.DataError, match="orientations"):
+        compensate_program(robot, loaded, targets, task="pose")

@@ -322,7 +322,11 @@ def test_compensate_takes_the_yaml(
         "-o", compensated,
     )  # fmt: skip
     assert code == 0, err
-    assert "compensated 40 of 40 rows" in text
+    # the whole pose (issue 43): a row at a wrist or elbow singularity may be refused, and says so
+    status = [line.rsplit(",", 1)[1] for line in compensated.read_text().splitlines()[1:]]
+    ok = np.array([s == "ok" for s in status])
+    assert ok.sum() >= 36 and set(status) <= {"ok", "singular"}, text
+    assert f"compensated {ok.sum()} of 40 rows (pose task)" in text
     loaded = pincal.load_calibration(out, nominal="ur5")
     assert loaded.robot.urdf_text != nominal.urdf_text  # the calibrated chain, not the factory one
     reg = loaded.instrument_T_base
@@ -333,7 +337,7 @@ def test_compensate_takes_the_yaml(
     def reached(q: np.ndarray) -> np.ndarray:  # the true tool in the calibration's base frame
         return (truth.target(q)[0] - reg.translation) @ reg.rotation
 
-    error = np.linalg.norm(reached(commands) - targets, axis=1)
+    error = np.linalg.norm(reached(commands) - targets, axis=1)[ok]
     before = np.linalg.norm(reached(program) - targets, axis=1)
     fitted = json.loads(report.read_text())["test"]["after"]["rms_mm"] * 1e-3  # [m]
     assert np.sqrt(np.mean(before**2)) > 20 * fitted  # the factory YAML is off: there is work to do

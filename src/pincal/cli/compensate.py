@@ -61,8 +61,7 @@ def run(args: argparse.Namespace) -> int:
             "program is for this robot and within its limits"
         )
     write_program(args.output, result, args.degrees, nominal.prismatic, args.units)
-    worst = float(result.position_error[result.ok].max()) * 1e3
-    print(f"compensated {int(result.ok.sum())} of {n} rows ({result.task} task, worst {worst:.4f} mm)")
+    print(result.summary())
     for line in result.failures():
         print(f"  {line}")
     print(f"written to {args.output}")

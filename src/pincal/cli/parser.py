@@ -202,7 +202,13 @@ def _add_compensate(sub: Any) -> None:
         "the program run (its static poses are the commands)",
     )
     comp.add_argument("-o", "--output", type=Path, required=True, help="the compensated program (CSV)")
-    comp.add_argument("--task", choices=["pose", "position"], help="default: pose after pose data")
+    comp.add_argument(
+        "--task",
+        choices=["pose", "position"],
+        help="pose (default): the tool's point and orientation where the nominal URDF put them "
+        "(x,y,z targets without qw,qx,qy,qz: position); position: the point only, the orientation "
+        "moves (the summary says how far)",
+    )
     comp.add_argument("--degrees", action="store_true", help="revolute joint values in degrees (in and out)")
     comp.add_argument("--units", choices=sorted(UNITS), default="m", help="unit of x,y,z targets, prismatic")
     add_recording_options(comp, "PROGRAM")

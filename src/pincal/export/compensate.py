@@ -3,40 +3,42 @@ reach the poses a program was written for.
 
 The calibration is what :func:`pincal.write_corrected_urdf` wrote: the corrected URDF and its
 sidecar ``<stem>.calibration.json`` (the tool ``tip_T_tool`` and any extension). Commanded ``q``,
-the joints reach ``q + e(q)`` (:mod:`pincal.kinematics.effects`), so the tool is at
-``T(q) = FK_cal(q + e(q)) · tip_T_tool`` in the base frame. A row of commands ``q₀`` asks for
-``T* = FK_nom(q₀) · tip_T_tool``, where the nominal URDF puts the same tool; a Cartesian row gives
-``T*`` itself [m]. ``T(q) = T*`` is solved by damped least squares on Pinocchio's frame Jacobian of
-the tool, ``Δq = Jᵀ (J Jᵀ + λ² I)⁻¹ e``, from ``q₀``, projected onto the joint limits after every
-step. ``e`` is ``log6(T⁻¹ T*)`` (rotation weighted by ``rotation_weight`` [m/rad]) for the ``pose``
-task, the position error for ``position``: the default after pose data and after point data, which
-calibrate the measured point but not the tool's orientation. ``∂e/∂q`` is left out of ``J``
-(small beside the identity; the error itself is exact). A row ends ``ok``, ``unreachable`` (no
-command within the limits reaches ``T*``) or ``singular`` (the commands sit at a singularity: the
-correction needs a large joint motion or cannot be made); a failed row of commands keeps them.
+the joints reach what :meth:`CalibratedRobot.reached` says (``q + e(q)``,
+:mod:`pincal.kinematics.effects`; the rows in the program's order, each after the row before), and
+the tool is at ``T(q) = FK_cal(reached) · tip_T_tool`` in the base frame. A row of commands ``q₀``
+asks for ``T* = FK_nom(q₀) · tip_T_tool``: the point *and the orientation* the nominal URDF gave
+the tool (the ``pose`` task, the default), or the point only (``position``: the orientation then
+moves, and :attr:`Compensation.rotation_error` says by how much). A Cartesian row gives ``T*``
+itself [m] (its orientation, when the row has one).
+
+Each row is solved from ``q₀`` (a Cartesian row: from the previous row's solution, then random
+restarts) by :mod:`pincal.export.inverse_kinematics`: the point first, then the orientation (on a
+chain of fewer than six joints, as close as it can be), then the smallest joint change from
+``q₀``. A row ends ``ok``, ``unreachable`` (no command within the limits reaches ``T*``: beyond a
+limit, or beyond what the calibrated arm reaches) or ``singular`` (the commands sit at or near a
+singularity: the correction needs a large joint motion or cannot be made); a failed row of
+commands keeps them.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 
 from pincal.data.program import Targets
-from pincal.errors import DataError, NotSupportedError
+from pincal.errors import DataError
 from pincal.export.calibrated_robot import CalibratedRobot
+from pincal.export.inverse_kinematics import Found, Settings, search, solve, tool_errors
 from pincal.files import atomic_write
-from pincal.identify.kinds import get_kind
-from pincal.options import ROTATION_WEIGHT
 from pincal.robot.robots import Robot
 
 STATUSES = ("ok", "unreachable", "singular")
-
-#: What a search found: commands, position [m] and rotation [rad] errors, iterations,
-#: convergence, and σmin/σmax of the task Jacobian at the start.
-_Found = tuple[np.ndarray, float, float, int, bool, float]
+#: What a program can ask: the tool's whole pose (the default), or its point only.
+TASKS = ("pose", "position")
 
 
 @dataclass(frozen=True, eq=False)
@@ -45,15 +47,19 @@ class Compensation:
 
     Attributes:
         joint_names: the chain's joints.
-        task: ``pose`` or ``position``.
+        task: ``pose`` (point and orientation) or ``position`` (point only).
         original: (N, n) the program's commands (for a Cartesian program: the start of each row's search).
         q: (N, n) compensated commands (a failed row of commands keeps them; a failed Cartesian row
             holds the closest commands found).
         status: per row, one of :data:`STATUSES`.
         position_error: (N,) the calibrated tool's distance to the target at ``q`` [m].
-        rotation_error: (N,) its orientation error [rad] (0 for the position task).
-        iterations: (N,) damped least-squares iterations.
+        rotation_error: (N,) the angle between the calibrated tool's orientation at ``q`` and the
+            target's [rad]: for the ``position`` task, how far the orientation moved; NaN for
+            Cartesian targets without orientations.
+        iterations: (N,) Gauss-Newton iterations.
         messages: per row, why it failed ('' when ok).
+        prismatic: per joint, True when it is prismatic (its changes are in metres).
+        cartesian: whether the program gave Cartesian targets (else rows of commands).
     """
 
     joint_names: tuple[str, ...]
@@ -65,55 +71,58 @@ class Compensation:
     rotation_error: np.ndarray
     iterations: np.ndarray
     messages: tuple[str, ...]
+    prismatic: tuple[bool, ...] = ()
+    cartesian: bool = False
 
     @property
     def ok(self) -> np.ndarray:
         """(N,) mask of the rows compensated."""
-        return np.array([s == "ok" for s in self.status])
+        return np.array([s == "ok" for s in self.status], dtype=bool)
+
+    @property
+    def joint_change(self) -> np.ndarray:
+        """(N, n) compensated minus original commands [rad or m] (zero on a failed row of commands)."""
+        return self.q - self.original
 
     def failures(self) -> list[str]:
         """One line per failed row: ``row R: STATUS: why`` (R counts data rows from 1)."""
         rows = zip(self.status, self.messages)
         return [f"row {i}: {s}: {m}" for i, (s, m) in enumerate(rows, start=1) if s != "ok"]
 
-
-def _solve(
-    cal: CalibratedRobot, target: pin.SE3, q: np.ndarray, task: str, weight: float, opts: dict[str, float]
-) -> _Found:
-    """Damped least squares from ``q``: the best commands met, their position [m] and rotation
-    [rad] errors, iterations, convergence, and σmin/σmax of the task Jacobian at the start."""
-    model, fid = cal.tool_frame
-    data = model.createData()
-    lo, hi = cal.robot.lower, cal.robot.upper
-    q = np.clip(q, lo, hi)
-    w = np.array([1.0, 1.0, 1.0, weight, weight, weight])
-    ratio, it, best = 1.0, 0, (q, np.inf, np.inf)
-    while True:
-        pin.computeJointJacobians(model, data, cal.robot.configuration(cal.reached(q)[0]))
-        pose = pin.updateFramePlacement(model, data, fid)
-        pos_err = float(np.linalg.norm(target.translation - pose.translation))
-        if task == "pose":
-            i_m_d = pose.actInv(target)
-            err = w * pin.log6(i_m_d).vector
-            jac = w[:, None] * (
-                pin.Jlog6(i_m_d.inverse()) @ pin.getFrameJacobian(model, data, fid, pin.LOCAL)
-            )
-            rot_err = float(np.linalg.norm(err[3:])) / weight
+    def summary(self) -> str:
+        """One line: rows compensated; over them, the worst distance of the point and the worst
+        turn of the orientation from the target, and (for rows of commands) the largest joint change."""
+        ok = self.ok
+        head = f"compensated {int(ok.sum())} of {len(self.status)} rows ({self.task} task)"
+        if not ok.any():
+            return head
+        pos, rot = self.position_error[ok].max() * 1e3, self.rotation_error[ok].max()
+        target = "the targets" if self.cartesian else "where the nominal URDF put it"
+        if np.isnan(rot):
+            words = f"the point within {pos:.4f} mm of {target}"
+        elif self.task == "pose":
+            n = len(self.joint_names)
+            close = f" (as close as {n} joints allow)" if n < 6 else ""
+            pose = "the targets" if self.cartesian else "the pose the nominal URDF gave it"
+            words = f"the tool within {pos:.4f} mm and {rot * 1e3:.4f} mrad{close} of {pose}"
         else:
-            err = target.translation - pose.translation
-            jac = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)[:3]
-            rot_err = 0.0
-        if it == 0:
-            sv = np.linalg.svd(jac, compute_uv=False)
-            ratio = float(sv[-1] / sv[0]) if sv[0] > 0 else 0.0
-        if pos_err + weight * rot_err < best[1] + weight * best[2]:
-            best = (q, pos_err, rot_err)
-        converged = pos_err <= opts["tol"] and rot_err <= opts["rot_tol"]
-        if converged or it >= opts["max_iter"]:
-            return (*best, it, converged, ratio)
-        dq = jac.T @ np.linalg.solve(jac @ jac.T + opts["damping"] ** 2 * np.eye(len(err)), err)
-        q = np.clip(q + dq * min(1.0, 0.25 / max(float(np.abs(dq).max()), 1e-12)), lo, hi)  # ≤ 0.25 a step
-        it += 1
+            words = (
+                f"the point within {pos:.4f} mm of {target}; the orientation is not kept: it turned "
+                f"by up to {rot * 1e3:.3f} mrad ({math.degrees(rot):.3f}°)"
+            )
+        return f"{head}: {words}{'' if self.cartesian else self._change_words()}"
+
+    def _change_words(self) -> str:
+        """``; largest joint change ...`` over the rows compensated (revolute, then prismatic)."""
+        change = np.abs(self.joint_change[self.ok])
+        slide = np.array(self.prismatic or [False] * len(self.joint_names), dtype=bool)
+        words = []
+        if (~slide).any():
+            turn = float(change[:, ~slide].max())
+            words.append(f"{turn * 1e3:.3f} mrad ({math.degrees(turn):.3f}°)")
+        if slide.any():
+            words.append(f"{float(change[:, slide].max()) * 1e3:.4f} mm (prismatic)")
+        return "; largest joint change " + ", ".join(words)
 
 
 def compensate_program(
@@ -122,13 +131,14 @@ def compensate_program(
     program: np.ndarray | Targets,
     *,
     task: str | None = None,
-    rotation_weight: float = ROTATION_WEIGHT,
-    tol: float = 1e-7,
-    rot_tol: float = 1e-6,
-    max_iter: int = 100,
-    damping: float = 1e-4,
-    singular_rcond: float = 1e-3,
+    tol: float = 1e-9,
+    rot_tol: float = 1e-9,
+    max_iter: int = 30,
+    rcond: float = 1e-8,
+    singular_rcond: float = 1e-2,
     max_change: float = 0.2,
+    max_step: float = 0.5,
+    damping: float = 0.03,
     restarts: int = 8,
     seed: int = 0,
 ) -> Compensation:
@@ -138,59 +148,101 @@ def compensate_program(
         nominal: the URDF the program was written for (its targets, for rows of commands).
         calibrated: the calibration (see :func:`load_calibration`).
         program: joint commands (N, n) [rad or m], or :class:`Targets`.
-        task: ``pose`` or ``position`` (default: ``pose`` on 6+ joints after pose data, or for
-            targets with orientations; else ``position``).
-        rotation_weight: weight of orientation errors [m/rad] in the pose task.
+        task: ``pose`` (the point and the orientation; the default, but for Cartesian targets
+            without orientations) or ``position`` (the point only; the orientation moves).
         tol: position tolerance [m]. rot_tol: orientation tolerance [rad].
-        max_iter: iterations per search.
-        damping: λ of the damped least squares [m].
-        singular_rcond: σmin/σmax of the task Jacobian under which commands count as singular.
+        max_iter: iterations per search (each of the two, plain and careful).
+        rcond: singular values of a task's Jacobian below ``rcond`` times its largest are left out.
+        singular_rcond: σmin/σmax of the task Jacobian (orientation rows weighted by
+            :data:`~pincal.options.ROTATION_WEIGHT`) under which commands count as singular.
         max_change: largest joint change [rad or m] a row of commands may need before it counts as singular.
+        max_step: largest joint change [rad or m] of one iteration.
+        damping: the first λ of the Levenberg-Marquardt search [m/rad] (where Gauss-Newton fails).
         restarts: random restarts for a Cartesian row the previous row's solution does not reach.
         seed: seed of the restarts.
 
     Raises:
-        DataError: the joints differ between the robots or the program, or an unknown task.
-        NotSupportedError: a pose task on a chain of fewer than 6 joints.
+        DataError: the joints differ between the robots or the program, an unknown task, or a
+            pose task on Cartesian targets without orientations.
     """
     robot = calibrated.robot
     cartesian = isinstance(program, Targets)
     n_rows = len(program)
-    q_in = _program_commands(nominal, calibrated, program, n_rows)
-    task = _choose_task(calibrated, program, task)
-    opts = {"tol": tol, "rot_tol": rot_tol, "max_iter": max_iter, "damping": damping}
+    q_in, targets = _program_commands(nominal, calibrated, program, n_rows)
+    opts = Settings(_choose_task(program, task), tol, rot_tol, max_iter, rcond, max_step, damping)
     rng = np.random.default_rng(seed)
     out, start = q_in.copy(), q_in.copy()
-    pos_e, rot_e, iters = np.zeros(n_rows), np.zeros(n_rows), np.zeros(n_rows, dtype=int)
+    iters = np.zeros(n_rows, dtype=int)
     status, messages = ["ok"] * n_rows, [""] * n_rows
-    previous = robot.random_configurations(1, rng, 0.1)[0]
     for i in range(n_rows):
+        before = out[i - 1] if i else None  # the row before, as the robot runs it
         if cartesian:
-            target, tries = program[i], [previous, *robot.random_configurations(restarts, rng, 0.1)]
+            seeds = robot.random_configurations(restarts + 1, rng, 0.1)
+            tries = [seeds[0] if before is None else before, *seeds[1:]]
+            best = search(calibrated, targets[i], tries, before, opts)
+            out[i], start[i], iters[i] = best.q, best.start, best.iterations
+            if not best.converged:
+                status[i], messages[i] = _unreached(robot, best, opts.task, None)
         else:
-            target, tries = nominal.frame_placement(q_in[i]) * calibrated.tool, [q_in[i]]
-            outside = _beyond(robot, q_in[i], strict=True)
-            if outside:
-                status[i], messages[i] = "unreachable", f"the commands are beyond the limits of {outside}"
-                continue
-        best, start[i] = _search(calibrated, target, tries, task, rotation_weight, opts)
-        q, pos_e[i], rot_e[i], iters[i], converged, ratio = best
-        change = float(np.abs(q - start[i]).max())
-        if converged and (cartesian or change <= max_change):
-            out[i], previous = q, q
-            continue
-        out[i] = q if cartesian else out[i]
-        off = f"{pos_e[i] * 1e3:.3f} mm" + (f", {rot_e[i] * 1e3:.3f} mrad" if task == "pose" else "")
-        status[i], messages[i] = _failure(robot, q, converged, change, ratio, off, cartesian, singular_rcond)
+            row = _command_row(calibrated, targets[i], q_in[i], before, opts, (singular_rcond, max_change))
+            out[i], iters[i], status[i], messages[i] = row
+    pos_e, rot_e = tool_errors(calibrated, targets, out)
+    if cartesian and getattr(program, "rotations", None) is None:
+        rot_e[:] = np.nan  # no orientation asked for
     return Compensation(
-        robot.joint_names, task, start, out, tuple(status), pos_e, rot_e, iters, tuple(messages)
+        robot.joint_names,
+        opts.task,
+        start,
+        out,
+        tuple(status),
+        pos_e,
+        rot_e,
+        iters,
+        tuple(messages),
+        tuple(robot.prismatic),
+        cartesian,
     )
+
+
+def _command_row(
+    cal: CalibratedRobot,
+    target: pin.SE3,
+    q0: np.ndarray,
+    before: np.ndarray | None,
+    opts: Settings,
+    limits: tuple[float, float],
+) -> tuple[np.ndarray, int, str, str]:
+    """One row of commands ``q0`` (n,): the commands to write, the iterations, status and message.
+
+    Args:
+        cal: the calibration.
+        target: where the nominal URDF put the tool with ``q0`` [m].
+        q0: the row's commands [rad or m].
+        before: the commands written for the row before (n,), or None for the first row.
+        opts: the search's settings.
+        limits: ``(singular_rcond, max_change)`` of :func:`compensate_program`.
+    """
+    outside = _beyond(cal.robot, q0, strict=True)
+    if outside:
+        return q0, 0, "unreachable", f"the commands are beyond the limits of {outside}"
+    best = search(cal, target, [q0], before, opts)
+    if best.converged and float(np.abs(best.q - q0).max()) <= limits[1]:
+        return best.q, best.iterations, "ok", ""
+    status, message = _unreached(cal.robot, best, opts.task, limits)
+    if opts.task == "pose":  # what the position task would do instead
+        point = solve(cal, target, q0, before, replace(opts, task="position"))
+        if point.converged and float(np.abs(point.q - q0).max()) <= limits[1]:
+            message += (
+                f" (the position task reaches the point, the orientation {point.rotation * 1e3:.3f} mrad off)"
+            )
+    return q0, best.iterations, status, message
 
 
 def _program_commands(
     nominal: Robot, calibrated: CalibratedRobot, program: np.ndarray | Targets, n_rows: int
-) -> np.ndarray:
-    """The program's commands (N, n) [rad or m]: zeros for a Cartesian program.
+) -> tuple[np.ndarray, Targets | list[pin.SE3]]:
+    """The program's commands (N, n) [rad or m] (zeros for a Cartesian program), and its targets:
+    where the nominal URDF put the tool with each row of commands, or the Cartesian targets.
 
     Args:
         nominal: the URDF the program was written for.
@@ -210,107 +262,63 @@ def _program_commands(
         raise DataError(
             f"the program and the nominal robot must have the calibration's joints {robot.joint_names}"
         )
-    return q_in
+    if isinstance(program, Targets):
+        return q_in, program
+    return q_in, [nominal.frame_placement(q) * calibrated.tool for q in q_in]
 
 
-def _choose_task(calibrated: CalibratedRobot, program: np.ndarray | Targets, task: str | None) -> str:
-    """The task asked for, or the default: ``pose`` on 6+ joints when the targets are oriented.
-
-    Targets are oriented when a Cartesian program gives rotations, or, for a program of
-    commands, when the calibration was made from pose data.
+def _choose_task(program: np.ndarray | Targets, task: str | None) -> str:
+    """The task asked for, or the default: ``pose``, but ``position`` for Cartesian targets
+    without orientations.
 
     Args:
-        calibrated: the calibration.
         program: joint commands (N, n) [rad or m], or :class:`Targets`.
         task: ``pose``, ``position`` or None for the default.
 
     Raises:
-        DataError: an unknown task.
-        NotSupportedError: a pose task on a chain of fewer than 6 joints.
+        DataError: an unknown task, or the pose task for targets without orientations.
     """
-    n_joints = calibrated.robot.n_joints
-    measured = get_kind(calibrated.measure).orientation  # the sidecar's kind: its data had orientations
-    oriented = program.rotations is not None if isinstance(program, Targets) else measured
-    default = "pose" if oriented else "position"
-    task = task or (default if n_joints >= 6 else "position")
-    if task not in ("pose", "position"):
+    unoriented = isinstance(program, Targets) and program.rotations is None
+    task = task or ("position" if unoriented else "pose")
+    if task not in TASKS:
         raise DataError(f"unknown task {task!r}: use pose or position")
-    if task == "pose" and n_joints < 6:
-        raise NotSupportedError(f"a {n_joints}-joint chain cannot follow 6-D poses: use the position task")
+    if task == "pose" and unoriented:
+        raise DataError(
+            "the pose task needs the targets' orientations (qw,qx,qy,qz columns): give them, or use "
+            "the position task"
+        )
     return task
 
 
-def _search(
-    cal: CalibratedRobot,
-    target: pin.SE3,
-    tries: list[np.ndarray],
-    task: str,
-    weight: float,
-    opts: dict[str, float],
-) -> tuple[_Found, np.ndarray]:
-    """The best :func:`_solve` result over the starting commands ``tries``, and its start.
-
-    The first converged search wins; otherwise the one of least ``position + weight · rotation``
-    error.
-
-    Args:
-        cal: the calibration.
-        target: the tool pose wanted in the base frame [m].
-        tries: starting commands (n,) [rad or m], in the order tried.
-        task: ``pose`` or ``position``.
-        weight: weight of orientation errors [m/rad].
-        opts: ``tol`` [m], ``rot_tol`` [rad], ``max_iter`` and ``damping`` [m] of :func:`_solve`.
-
-    Returns:
-        ``(q, position error [m], rotation error [rad], iterations, converged, σmin/σmax)`` of the
-        best search, and the commands it started from.
-    """
-
-    def cost(found: _Found) -> float:
-        return found[1] + weight * found[2]
-
-    origin = tries[0]
-    best = _solve(cal, target, origin, task, weight, opts)
-    for guess in tries[1:]:
-        if best[4]:  # converged: no need to try further
-            break
-        found = _solve(cal, target, guess, task, weight, opts)
-        if found[4] or cost(found) < cost(best):
-            best, origin = found, guess
-    return best, origin
-
-
-def _failure(
-    robot: Robot,
-    q: np.ndarray,
-    converged: bool,
-    change: float,
-    ratio: float,
-    off: str,
-    cartesian: bool,
-    singular_rcond: float,
-) -> tuple[str, str]:
+def _unreached(robot: Robot, found: Found, task: str, limits: tuple[float, float] | None) -> tuple[str, str]:
     """Status and message of a row not compensated.
+
+    A row of commands is ``singular`` when its correction needs more than ``max_change`` (found,
+    or foreseen by the first Gauss-Newton step) or its Jacobian's σmin/σmax is under
+    ``singular_rcond``; else ``unreachable`` (beyond the calibrated arm's reach or a joint limit).
 
     Args:
         robot: the calibrated chain.
-        q: the closest commands found (n,) [rad or m].
-        converged: whether the search reached the target.
-        change: largest joint change from the start [rad or m].
-        ratio: σmin/σmax of the task Jacobian at the start.
-        off: how far the closest pose found is from the target, in words (mm, mrad).
-        cartesian: whether the row is a Cartesian target (else a row of commands).
-        singular_rcond: σmin/σmax under which commands count as singular.
+        found: the closest search.
+        task: ``pose`` or ``position``.
+        limits: for a row of commands, ``(singular_rcond, max_change)``; None for a Cartesian row.
     """
-    if converged:
+    change = float(np.abs(found.q - found.start).max())
+    if found.converged:
         return "singular", f"near a singularity: needs a joint change of {change:.3f} rad"
-    if not cartesian and ratio < singular_rcond:
-        return "singular", f"at a singularity (σmin/σmax {ratio:.1e}): {off} off"
-    limit = _beyond(robot, q, strict=False)
-    why = (f"; {limit} at a joint limit" if limit else "") + (
-        f"; σmin/σmax {ratio:.1e} at the commands" if not cartesian and ratio < 10 * singular_rcond else ""
-    )
-    return "unreachable", f"out of reach: the closest pose found is {off} off{why}"
+    off = f"{found.position * 1e3:.3f} mm" + (f", {found.rotation * 1e3:.3f} mrad" if task == "pose" else "")
+    closest = f"the closest pose found is {off} off"
+    at_limit = _beyond(robot, found.q, strict=False)
+    if limits is not None and not at_limit:
+        singular_rcond, max_change = limits
+        near = f"near a singularity (σmin/σmax {found.ratio:.1e})"
+        if found.first_step > max_change:
+            needs = f"the correction needs a joint change of about {found.first_step:.2f} rad"
+            return "singular", f"{near}: {needs}; {closest}"
+        if found.ratio < singular_rcond:
+            return "singular", f"{near}: {closest}"
+    why = f"; {at_limit} at a joint limit" if at_limit else ""
+    return "unreachable", f"out of reach: {closest}{why}"
 
 
 def _beyond(robot: Robot, q: np.ndarray, strict: bool) -> str:
