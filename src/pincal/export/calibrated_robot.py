@@ -18,7 +18,7 @@ from pincal.export.effects_json import read_effects
 from pincal.export.ur_yaml import is_yaml
 from pincal.export.urdf_writer import moved_origins, robot_source, sidecar_path
 from pincal.inputs import read_bytes
-from pincal.kinematics.effects import AnyEffect
+from pincal.kinematics.effects import AnyEffect, split_params
 from pincal.robot.marker_tips import marker_spec
 from pincal.robot.robots import Robot, load_robot
 
@@ -60,12 +60,24 @@ class CalibratedRobot:
 
     markers: dict[str, tuple[str, np.ndarray]] | None = None
 
-    def reached(self, q: np.ndarray) -> np.ndarray:
+    def reached(self, q: np.ndarray, directions: np.ndarray | None = None) -> np.ndarray:
         """Joint values (N, n) the robot reaches for commands ``q`` (N, n) [rad or m], the rows in
         the order the robot moves through them (lost motion reads each joint's direction from the
-        previous row; the first row's is unknown)."""
+        previous row; the first row's is unknown), or moving in ``directions`` (N, n; +1, -1, 0)
+        when given."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
-        return q if self.extension is None else q + self.extension.joint_error(q, self.effect)
+        if self.extension is None:
+            return q
+        moves = None if directions is None else np.atleast_2d(directions)
+        return q + self.extension.joint_error(q, self.effect, moves)
+
+    def lost_motion(self) -> dict[str, float]:
+        """Each joint with a lost motion effect, and its ``lost_motion`` parameter [rad or m]: the
+        joint reaches ``q + v·s`` moving in direction ``s``, and a reversal jumps by ``2|v|``."""
+        if self.extension is None:
+            return {}
+        pairs = split_params(self.extension, self.effect)
+        return {e.joint: float(p[0]) for e, p in pairs if e.effect == "lost_motion"}
 
     def tool_pose(self, q: np.ndarray, previous: np.ndarray | None = None) -> pin.SE3:
         """``base_T_tool`` for one command ``q`` (n,) [rad or m], the effects included; a lost

@@ -1,10 +1,10 @@
 """Compensation (Zhang et al., steps 5 and 6): the joint commands that make the calibrated robot
 reach the poses a program was written for.
 
-The calibration is what :func:`pincal.write_corrected_urdf` wrote: the corrected URDF and its
-sidecar ``<stem>.calibration.json`` (the tool ``tip_T_tool`` and any extension). Commanded ``q``,
-the joints reach what :meth:`CalibratedRobot.reached` says (``q + e(q)``,
-:mod:`pincal.kinematics.effects`; the rows in the program's order, each after the row before), and
+The calibration is the full model :func:`load_calibration` reads from what
+:func:`pincal.write_corrected_urdf` wrote (the URDF, the sidecar's ``complete`` and effects). Commanded
+``q``, the joints reach what :meth:`CalibratedRobot.reached` says (``q + e(q)``, lost motion from
+the compensated commands of the rows before, as the robot runs them), and
 the tool is at ``T(q) = FK_cal(reached) · tip_T_tool`` in the base frame. A row of commands ``q₀``
 asks for ``T* = FK_nom(q₀) · tip_T_tool``: the point *and the orientation* the nominal URDF gave
 the tool (the ``pose`` task, the default), or the point only (``position``: the orientation then
@@ -29,10 +29,11 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from pincal.data.directions import STILL
 from pincal.data.program import Targets
 from pincal.errors import DataError
 from pincal.export.calibrated_robot import CalibratedRobot
-from pincal.export.inverse_kinematics import Found, Settings, search, solve, tool_errors
+from pincal.export.inverse_kinematics import Approach, Found, Settings, search, solve, tool_errors
 from pincal.files import atomic_write
 from pincal.robot.robots import Robot
 
@@ -174,11 +175,11 @@ def compensate_program(
     out, start = q_in.copy(), q_in.copy()
     iters = np.zeros(n_rows, dtype=int)
     status, messages = ["ok"] * n_rows, [""] * n_rows
+    before = Approach()  # where the robot comes from: the rows written before, run in order
     for i in range(n_rows):
-        before = out[i - 1] if i else None  # the row before, as the robot runs it
         if cartesian:
             seeds = robot.random_configurations(restarts + 1, rng, 0.1)
-            tries = [seeds[0] if before is None else before, *seeds[1:]]
+            tries = [seeds[0] if before.previous is None else before.previous, *seeds[1:]]
             best = search(calibrated, targets[i], tries, before, opts)
             out[i], start[i], iters[i] = best.q, best.start, best.iterations
             if not best.converged:
@@ -186,29 +187,20 @@ def compensate_program(
         else:
             row = _command_row(calibrated, targets[i], q_in[i], before, opts, (singular_rcond, max_change))
             out[i], iters[i], status[i], messages[i] = row
+            messages[i] += _in_play(calibrated, q_in[max(i - 1, 0) : i + 1]) if row[2] != "ok" else ""
+        before = before.then(out[i])
     pos_e, rot_e = tool_errors(calibrated, targets, out)
     if cartesian and getattr(program, "rotations", None) is None:
         rot_e[:] = np.nan  # no orientation asked for
-    return Compensation(
-        robot.joint_names,
-        opts.task,
-        start,
-        out,
-        tuple(status),
-        pos_e,
-        rot_e,
-        iters,
-        tuple(messages),
-        tuple(robot.prismatic),
-        cartesian,
-    )
+    report = (tuple(status), pos_e, rot_e, iters, tuple(messages))
+    return Compensation(robot.joint_names, opts.task, start, out, *report, tuple(robot.prismatic), cartesian)
 
 
 def _command_row(
     cal: CalibratedRobot,
     target: pin.SE3,
     q0: np.ndarray,
-    before: np.ndarray | None,
+    before: Approach,
     opts: Settings,
     limits: tuple[float, float],
 ) -> tuple[np.ndarray, int, str, str]:
@@ -218,14 +210,16 @@ def _command_row(
         cal: the calibration.
         target: where the nominal URDF put the tool with ``q0`` [m].
         q0: the row's commands [rad or m].
-        before: the commands written for the row before (n,), or None for the first row.
+        before: where the robot comes from: the commands written for the rows before.
         opts: the search's settings.
         limits: ``(singular_rcond, max_change)`` of :func:`compensate_program`.
     """
     outside = _beyond(cal.robot, q0, strict=True)
     if outside:
         return q0, 0, "unreachable", f"the commands are beyond the limits of {outside}"
-    best = search(cal, target, [q0], before, opts)
+    prev = before.previous  # also tried from there: a row the program repeats, reached again
+    tries = [q0] if prev is None or float(np.abs(prev - q0).max()) > limits[1] else [q0, prev]
+    best = search(cal, target, tries, before, opts)
     if best.converged and float(np.abs(best.q - q0).max()) <= limits[1]:
         return best.q, best.iterations, "ok", ""
     status, message = _unreached(cal.robot, best, opts.task, limits)
@@ -238,20 +232,31 @@ def _command_row(
     return q0, best.iterations, status, message
 
 
+def _in_play(cal: CalibratedRobot, rows: np.ndarray) -> str:
+    """Why a refused row of commands (the last of ``rows``) may need a move lost motion forbids: the
+    joints with lost motion the program holds still (on their flank: no reversal under ``2|v|``)."""
+    names, slide = cal.robot.joint_names, cal.robot.prismatic
+    held = [
+        f"{j} ({2e3 * abs(v):.3f} {'mm' if slide[names.index(j)] else 'mrad'})"
+        for j, v in cal.lost_motion().items()
+        if len(rows) == 2 and abs(rows[1, names.index(j)] - rows[0, names.index(j)]) <= STILL
+    ]
+    if not held:
+        return ""
+    return (
+        f"; the program holds {', '.join(held)} still: a reversal smaller than its lost motion (in "
+        "brackets) cannot be made: move the joint in the program"
+    )
+
+
 def _program_commands(
     nominal: Robot, calibrated: CalibratedRobot, program: np.ndarray | Targets, n_rows: int
 ) -> tuple[np.ndarray, Targets | list[pin.SE3]]:
     """The program's commands (N, n) [rad or m] (zeros for a Cartesian program), and its targets:
     where the nominal URDF put the tool with each row of commands, or the Cartesian targets.
 
-    Args:
-        nominal: the URDF the program was written for.
-        calibrated: the calibration.
-        program: joint commands (N, n) [rad or m], or :class:`Targets`.
-        n_rows: the program's number of rows.
-
     Raises:
-        DataError: the joints differ between the robots or the program.
+        DataError: the joints differ between the robots (``nominal``, the calibration's) or the program.
     """
     robot = calibrated.robot
     if isinstance(program, Targets):
@@ -269,11 +274,7 @@ def _program_commands(
 
 def _choose_task(program: np.ndarray | Targets, task: str | None) -> str:
     """The task asked for, or the default: ``pose``, but ``position`` for Cartesian targets
-    without orientations.
-
-    Args:
-        program: joint commands (N, n) [rad or m], or :class:`Targets`.
-        task: ``pose``, ``position`` or None for the default.
+    without orientations (``task`` None).
 
     Raises:
         DataError: an unknown task, or the pose task for targets without orientations.

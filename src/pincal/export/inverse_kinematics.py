@@ -1,8 +1,9 @@
 """Inverse kinematics of the calibrated tool: the commands that put it at a target pose, the
 joint change from a start kept smallest (the engine of :mod:`pincal.export.compensate`).
 
-Commanded ``q``, the joints reach what :meth:`CalibratedRobot.reached` says (given the row before,
-so that an effect that depends on the direction of motion sees it), and the tool is at
+Commanded ``q``, the joints reach what :meth:`CalibratedRobot.reached` says, each joint moving in
+the direction it comes from the row before (:class:`Approach`: lost motion sees it as it sees the
+rows of a file), and the tool is at
 ``FK_cal(reached) · tip_T_tool``. Tasks, in order of priority, each solved in the null space of
 those before it:
 
@@ -29,6 +30,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pinocchio as pin
 
+from pincal.data.directions import STILL
 from pincal.data.program import Targets
 from pincal.export.calibrated_robot import CalibratedRobot
 from pincal.options import ROTATION_WEIGHT
@@ -46,6 +48,28 @@ class Settings:
     max_step: float
     damping: float
     step_tol: float = 1e-10  # [rad or m]: a step this small has settled the lower tasks
+
+
+@dataclass(frozen=True)
+class Approach:
+    """Where the robot comes from into a row: the commands of the row before, and each joint's
+    direction of motion into that row, as :func:`~pincal.data.directions.move_directions` reads
+    the rows of a file."""
+
+    previous: np.ndarray | None = None  # (n,) [rad or m]; None for the first row
+    moving: np.ndarray | None = None  # (n,) +1, -1 or 0
+
+    def then(self, q: np.ndarray) -> Approach:
+        """Into the row after commands ``q`` (n,), run coming as this says."""
+        return Approach(np.array(q, dtype=float), self.directions(q))
+
+    def directions(self, q: np.ndarray) -> np.ndarray:
+        """Each joint's direction into commands ``q`` (n,): +1 rose, -1 fell, the direction into the
+        row before when it moved by :data:`~pincal.data.directions.STILL` or less, 0 on the first row."""
+        if self.previous is None or self.moving is None:
+            return np.zeros(len(q))
+        step = np.asarray(q, dtype=float) - self.previous
+        return np.where(np.abs(step) > STILL, np.sign(step), self.moving)
 
 
 @dataclass(frozen=True)
@@ -72,7 +96,7 @@ def search(
     cal: CalibratedRobot,
     target: pin.SE3,
     tries: list[np.ndarray],
-    before: np.ndarray | None,
+    before: Approach,
     opts: Settings,
 ) -> Found:
     """The best :func:`solve` result over the starting commands ``tries``: the first converged
@@ -84,7 +108,7 @@ def search(
         cal: the calibration.
         target: the tool pose wanted in the base frame [m].
         tries: starting commands (n,) [rad or m], in the order tried.
-        before: the commands of the program's row before (n,) [rad or m], or None for the first row.
+        before: where the robot comes from (the program's row before).
         opts: the search's settings.
     """
     closest = opts.task == "pose" and cal.robot.n_joints < 6  # converged searches still differ
@@ -103,7 +127,7 @@ def search(
 
 
 def solve(
-    cal: CalibratedRobot, target: pin.SE3, start: np.ndarray, before: np.ndarray | None, opts: Settings
+    cal: CalibratedRobot, target: pin.SE3, start: np.ndarray, before: Approach, opts: Settings
 ) -> Found:
     """Prioritised Gauss-Newton from ``start`` toward ``target``: the point, then (pose task) the
     orientation, then the smallest change from ``start`` (see the module docstring).
@@ -120,7 +144,7 @@ def solve(
         cal: the calibration.
         target: the tool pose wanted in the base frame [m].
         start: the first commands (n,) [rad or m], and the reference of the smallest joint change.
-        before: the commands of the program's row before (n,), or None for the first row.
+        before: where the robot comes from (the program's row before).
         opts: the search's settings.
     """
     newton = _iterate(cal, target, start, start, before, opts, monotone=False, pull=True)
@@ -139,7 +163,7 @@ def _iterate(
     target: pin.SE3,
     begin: np.ndarray,
     start: np.ndarray,
-    before: np.ndarray | None,
+    before: Approach,
     opts: Settings,
     monotone: bool,
     pull: bool,
@@ -219,9 +243,7 @@ class _At:
     levels: list[tuple[np.ndarray, np.ndarray]]  # (A, b) of each task, A dq = b, by priority
 
     @classmethod
-    def of(
-        cls, cal: CalibratedRobot, target: pin.SE3, q: np.ndarray, before: np.ndarray | None, task: str
-    ) -> _At:
+    def of(cls, cal: CalibratedRobot, target: pin.SE3, q: np.ndarray, before: Approach, task: str) -> _At:
         """The tool at ``q`` (n,): the point's task ``J_v dq = p* - p``, and for the pose task the
         orientation's ``Jlog3(R* Rᵀ) J_ω dq = log3(R* Rᵀ)`` (world-aligned Jacobian)."""
         pose, jac = _tool(cal, q, before)
@@ -236,15 +258,12 @@ class _At:
         return cls(q, pos, rot, cost, levels)
 
 
-def _tool(cal: CalibratedRobot, q: np.ndarray, before: np.ndarray | None) -> tuple[pin.SE3, np.ndarray]:
-    """The calibrated tool's pose at commands ``q`` (n,), and its frame Jacobian (6, n),
-    ``LOCAL_WORLD_ALIGNED`` (rows v [m/unit], ω [rad/unit]) at the joint values reached.
-
-    ``before`` (the previous row's commands, or None) is given to :meth:`CalibratedRobot.reached`
-    as the row before ``q``."""
+def _tool(cal: CalibratedRobot, q: np.ndarray, before: Approach) -> tuple[pin.SE3, np.ndarray]:
+    """The calibrated tool's pose at commands ``q`` (n,), coming as ``before`` says, and its frame
+    Jacobian (6, n), ``LOCAL_WORLD_ALIGNED`` (rows v [m/unit], ω [rad/unit]) at the joint values
+    reached."""
     model, fid = cal.tool_frame
-    rows = q[None] if before is None else np.vstack([before, q])
-    joints = cal.reached(rows)[-1]
+    joints = cal.reached(q[None], before.directions(q)[None])[0]
     data = model.createData()
     jac = pin.computeFrameJacobian(model, data, cal.robot.configuration(joints), fid, pin.LOCAL_WORLD_ALIGNED)
     return data.oMf[fid].copy(), jac
@@ -291,13 +310,10 @@ def tool_errors(
     cal: CalibratedRobot, targets: Sequence[pin.SE3] | Targets, q: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """Per row, the distance [m] and the angle [rad] from the calibrated tool at commands ``q``
-    (N, n), run in order (:meth:`CalibratedRobot.reached`), to ``targets[i]``."""
-    model, fid = cal.tool_frame
-    data = model.createData()
+    (N, n), run in order (:meth:`CalibratedRobot.tool_poses`), to ``targets[i]``."""
     pos, rot = np.zeros(len(q)), np.zeros(len(q))
-    for i, joints in enumerate(cal.reached(q)):
-        pin.framesForwardKinematics(model, data, cal.robot.configuration(joints))
-        tool, target = data.oMf[fid], targets[i]
+    for i, tool in enumerate(cal.tool_poses(q)):
+        target = targets[i]
         pos[i] = np.linalg.norm(target.translation - tool.translation)
         rot[i] = np.linalg.norm(pin.log3(target.rotation @ tool.rotation.T))
     return pos, rot
