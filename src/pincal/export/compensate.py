@@ -100,15 +100,15 @@ class Compensation:
         pos, rot = self.position_error[ok].max() * 1e3, self.rotation_error[ok].max()
         target = "the targets" if self.cartesian else "where the nominal URDF put it"
         if np.isnan(rot):
-            words = f"the point within {pos:.4f} mm of {target}"
+            words = f"the point within {pos:.2g} mm of {target}"
         elif self.task == "pose":
             n = len(self.joint_names)
             close = f" (as close as {n} joints allow)" if n < 6 else ""
             pose = "the targets" if self.cartesian else "the pose the nominal URDF gave it"
-            words = f"the tool within {pos:.4f} mm and {rot * 1e3:.4f} mrad{close} of {pose}"
+            words = f"the tool within {pos:.2g} mm and {rot * 1e3:.2g} mrad{close} of {pose}"
         else:
             words = (
-                f"the point within {pos:.4f} mm of {target}; the orientation is not kept: it turned "
+                f"the point within {pos:.2g} mm of {target}; the orientation is not kept: it turned "
                 f"by up to {rot * 1e3:.3f} mrad ({math.degrees(rot):.3f}°)"
             )
         return f"{head}: {words}{'' if self.cartesian else self._change_words()}"
