@@ -38,6 +38,7 @@ from pincal.export.effects_json import effects_json
 from pincal.export.origins import OriginChange, origin_change, read_origin, write_origin
 from pincal.files import atomic_write_many
 from pincal.identify.calibration import Calibration
+from pincal.identify.validity import region_dict
 from pincal.json_text import json_text
 from pincal.kinematics.chain import Chain, forward
 from pincal.robot.robots import Robot
@@ -263,6 +264,7 @@ def sidecar(cal: Calibration, urdf_name: str) -> dict[str, Any]:
         "markers": markers_entry(cal),
         "extension": effects_json(full.extension, full.effect_params),
         "complete": complete(full),
+        "validity_region": None if full.guard is None else region_dict(full.guard.region),
         "tool_note": (
             "the measured point (and target orientation for pose data) on the tip frame. Only what "
             "was measured is calibrated: with point data, frames other than the measured point "

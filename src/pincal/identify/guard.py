@@ -13,6 +13,10 @@ validation error - the fit's) is above :data:`Z_MIN` standard errors. Otherwise 
 support a calibration better than the nominal model, and :func:`pincal.calibrate` exports the
 nominal geometry (with its fitted registration and tool: no worse than the URDF on these data),
 and says so; ``force_fit=True`` (``--force-fit``) exports the fit anyway.
+
+A fit that passes is then checked across the joint limits (:mod:`pincal.identify.extrapolation`):
+when it is expected to be worse than the nominal model outside the poses it was fitted on, the
+nominal geometry is exported in the same way (unless ``force_fit``).
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ import numpy as np
 
 from pincal.data.dataset import Dataset
 from pincal.identify.calibration import Calibration
+from pincal.identify.extrapolation import check
 from pincal.identify.folds import held_out_rows
 from pincal.identify.guard_null import NULL_MAX_POSES, null_threshold
 from pincal.identify.identifiability import Identifiability
@@ -31,6 +36,7 @@ from pincal.identify.measurements import Problem
 from pincal.identify.prior import choose_weight, pulled
 from pincal.identify.records import Guard, PriorChoice
 from pincal.identify.solver import Setup, assess, solve
+from pincal.identify.validity import joint_ranges
 
 #: The fit is kept when its validation gain over the nominal model is this many standard errors.
 Z_MIN = 2.0
@@ -218,7 +224,12 @@ def protect(
     choice, chosen, theta, result = choose_weight(setup, base, free, pull.weight, loss)
     if loss != "linear":
         theta, result = solve(chosen, base, free, loss, f_scale)
-    verdict = judge(chosen, theta, nominal, free, pull.force_fit, pull.selected)
+    region = joint_ranges(setup.model.robot, setup.data.q)
+    verdict = replace(judge(chosen, theta, nominal, free, pull.force_fit, pull.selected), region=region)
+    if verdict.reliable:  # validated on its poses: is it expected to hold beyond them?
+        beyond = check(chosen, theta, nominal, free)
+        holds = beyond is None or beyond.holds
+        verdict = replace(verdict, extrapolation=beyond, kept_fit=holds or pull.force_fit)
     kept = theta if verdict.kept_fit else nominal
     screening = (setup, base) if choice.chosen_by == "evidence" else (chosen, theta)
     return Protected(chosen, kept, nominal, ident, result, choice, verdict, screening)

@@ -103,13 +103,19 @@ def choose_weight(
 
 
 def evidence_curve(
-    setup: Setup, theta: np.ndarray, free: np.ndarray, weights: Sequence[float]
+    setup: Setup,
+    theta: np.ndarray,
+    free: np.ndarray,
+    weights: Sequence[float],
+    terms: tuple[np.ndarray, np.ndarray, float, int] | None = None,
 ) -> list[float]:
     """Log evidence of each weight (as :func:`log_evidence`), linearised at the fit ``theta``:
     each weight's fit is the Gauss-Newton step from ``theta`` (two solves in all, not one per
-    weight; the corrections are small enough for the residuals to be nearly linear in them)."""
+    weight; the corrections are small enough for the residuals to be nearly linear in them).
+    ``terms``: :func:`pincal.identify.chunked.normal_terms` at ``theta``, when already computed."""
     problem = setup.problem
-    unscaled, unscaled_grad, rr, n_rows = normal_terms(problem, theta, free)  # by blocks on large data
+    terms = normal_terms(problem, theta, free) if terms is None else terms  # by blocks on large data
+    unscaled, unscaled_grad, rr, n_rows = terms
     scale = setup.scale[free]
     gram, grad = unscaled * np.outer(scale, scale), unscaled_grad * scale
     pen = pulled(setup, free).astype(float)

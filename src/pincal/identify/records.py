@@ -17,6 +17,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from pincal.identify.validity import Extrapolation, JointRange
+
 
 class Choice(Protocol):
     """What :func:`pincal.auto.choice.choose` decided (a :class:`~pincal.auto.choice.ModelChoice`)."""
@@ -139,6 +141,10 @@ class Guard:
         kept_fit: the fit is exported (reliably better, or forced).
         forced: ``force_fit`` was asked for.
         threshold_from: how ``z_min`` was set, in words.
+        extrapolation: the fit's expected gain across the joint limits, checked when the fit is
+            reliable (:mod:`pincal.identify.extrapolation`); None when not checked. A reliable fit
+            that does not hold there is not exported unless forced.
+        region: each joint's range among the fitted poses.
     """
 
     fit_cv_rms_mm: float
@@ -148,11 +154,18 @@ class Guard:
     kept_fit: bool
     forced: bool = False
     threshold_from: str = "fixed (no choice was made on these poses before the guard)"
+    extrapolation: Extrapolation | None = None
+    region: tuple[JointRange, ...] = ()
 
     @property
     def reliable(self) -> bool:
         """The fit's validation error is reliably below the nominal's."""
         return self.z > self.z_min
+
+    @property
+    def holds(self) -> bool:
+        """The fit is not expected to be worse than the nominal model across the joint limits."""
+        return self.extrapolation is None or self.extrapolation.holds
 
     def text(self) -> str:
         """The verdict's line."""
@@ -161,8 +174,20 @@ class Guard:
             f"{self.nominal_cv_rms_mm:.3f} mm nominal; the difference in squared error is {self.z:.1f} times "
             f"its standard error (reliable above {self.z_min:g})"
         )
-        if self.reliable:
-            return f"guard: the fit is reliably better than the nominal model: {said}"
+        if self.reliable and self.holds:
+            beyond = "" if self.extrapolation is None else f"; {self.extrapolation.text()}"
+            return f"guard: the fit is reliably better than the nominal model: {said}{beyond}"
+        if self.reliable and self.extrapolation is not None:
+            what = (
+                "the fit is exported anyway (force_fit=True)"
+                if self.forced
+                else "the nominal geometry is exported, with only the registration and tool fitted "
+                "(force_fit=True exports the fit)"
+            )
+            return (
+                f"guard: the fit is reliably better than the nominal model on the fitted poses ({said}), "
+                f"but not across the joint limits ({self.extrapolation.text()}): {what}"
+            )
         if self.forced:
             return (
                 f"guard: the data do not support a calibration better than the nominal model ({said}); "
@@ -186,4 +211,5 @@ class Guard:
             "forced": self.forced,
             "z_min_from": self.threshold_from,
             "by": "linearised leave-one-pose-out cross-validation on the fitted poses",
+            "extrapolation": None if self.extrapolation is None else self.extrapolation.to_dict(),
         }

@@ -23,6 +23,7 @@ from pincal.identify.evaluation import (
     placement_errors,
 )
 from pincal.identify.uncertainty import STD_MEANS
+from pincal.identify.validity import region_dict
 from pincal.json_text import json_text
 from pincal.kinematics.effects import Extension, split_params
 from pincal.kinematics.models import PoeModel
@@ -191,6 +192,7 @@ def report_dict(
         "choice": _choice_dict(cal),
         "prior": None if cal.prior is None else cal.prior.to_dict(),
         "guard": None if cal.guard is None else cal.guard.to_dict(),
+        "validity_region": None if cal.guard is None else region_dict(cal.guard.region),
         "plausibility": None if cal.plausibility is None else cal.plausibility.to_dict(),
         "extension": extension_dict(cal, data),
         **_poe_dict(cal),

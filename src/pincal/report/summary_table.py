@@ -9,6 +9,7 @@ from pincal.data.dataset import Dataset
 from pincal.identify.calibration import Calibration
 from pincal.identify.evaluation import ErrorStats, point_spread
 from pincal.identify.groups import MODEL_WORDS, parameter_groups
+from pincal.identify.validity import region_text
 from pincal.report.outcome import Outcome
 from pincal.report.report import extension_dict, findings, listed_names, report_warnings
 
@@ -218,6 +219,8 @@ def summary(
         )
     lines += choice_lines(cal, data)
     lines += [part.text() for part in (cal.prior, cal.guard) if part is not None]
+    said = None if cal.guard is None else region_text(cal.guard.region)
+    lines += [said] if said else []
     if cal.plausibility is not None and not cal.plausibility.plausible:
         lines.append(f"plausibility: this calibration cannot be right: {cal.plausibility.hint}")
     if outcome is not None:

@@ -1,0 +1,155 @@
+"""Where a fit holds: the joint ranges its poses cover, and its expected gain beyond them.
+
+The records of :mod:`pincal.identify.extrapolation`, kept below the calibration that holds them
+(through :class:`pincal.identify.records.Guard`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from pincal.robot.robots import Robot
+
+#: A joint's range counts as narrower than its limits when the poses cover less than this share
+#: of it (limits wider than a turn, or none, counted as one turn).
+NARROW_SHARE = 0.5
+
+
+@dataclass(frozen=True)
+class JointRange:
+    """The range of one joint the fitted poses cover, beside its limits.
+
+    Attributes:
+        joint: the joint's name.
+        low, high: the smallest and largest value among the fitted poses [rad or m].
+        lower, upper: the joint's limits [rad or m] (None: unlimited).
+        unit: ``rad`` or ``m``.
+    """
+
+    joint: str
+    low: float
+    high: float
+    lower: float | None
+    upper: float | None
+    unit: str
+
+    @property
+    def share(self) -> float:
+        """The covered span over the limits' span (a turn at most, for a revolute joint), at most 1."""
+        lo = -math.inf if self.lower is None else self.lower
+        hi = math.inf if self.upper is None else self.upper
+        span = hi - lo
+        if self.unit == "rad":
+            span = min(span, 2.0 * math.pi)
+        return 1.0 if not math.isfinite(span) or span <= 0 else min(1.0, (self.high - self.low) / span)
+
+    @property
+    def narrow(self) -> bool:
+        """The poses cover less than :data:`NARROW_SHARE` of the joint's range."""
+        return self.share < NARROW_SHARE
+
+    def to_dict(self) -> dict[str, Any]:
+        """The report's entry for the joint."""
+        return {
+            "joint": self.joint,
+            "min": self.low,
+            "max": self.high,
+            "lower_limit": self.lower,
+            "upper_limit": self.upper,
+            "unit": self.unit,
+            "share_of_range": self.share,
+        }
+
+
+def joint_ranges(robot: Robot, q: np.ndarray) -> tuple[JointRange, ...]:
+    """Each joint's range over the poses ``q`` (N, n) [rad or m], with its limits."""
+    out = []
+    for j, name in enumerate(robot.joint_names):
+        lo, hi = float(robot.lower[j]), float(robot.upper[j])
+        unit = "m" if robot.prismatic[j] else "rad"
+        low, high = float(np.min(q[:, j])), float(np.max(q[:, j]))
+        out.append(
+            JointRange(
+                name, low, high, lo if math.isfinite(lo) else None, hi if math.isfinite(hi) else None, unit
+            )
+        )
+    return tuple(out)
+
+
+@dataclass(frozen=True)
+class Extrapolation:
+    """The fit's expected gain over the nominal model across the joint limits and on its own poses.
+
+    The expected gain at a configuration ``q`` is ``|Δ̂(q)|² - 2 (v_fit(q) - v_nominal(q))``:
+    ``Δ̂`` the difference of the two models' predicted tip positions, ``v`` each model's
+    prediction variance from its posterior covariance (:mod:`pincal.identify.extrapolation`).
+
+    Attributes:
+        whole_gain_mm2: mean expected gain over configurations drawn across the joint limits [mm²].
+        data_gain_mm2: the same over the fitted poses [mm²].
+        samples: the configurations drawn across the limits.
+        weight: the pull's weight of the posterior the gains are expected under (every
+            correction fitted, the weight of largest evidence) [per natural unit].
+    """
+
+    whole_gain_mm2: float
+    data_gain_mm2: float
+    samples: int
+    weight: float
+
+    @property
+    def holds(self) -> bool:
+        """The fit is expected to beat the nominal model across the joint limits."""
+        return self.whole_gain_mm2 > 0.0
+
+    def text(self) -> str:
+        """The verdict, for the guard's line."""
+        said = (
+            f"expected gain over the nominal model {self.whole_gain_mm2:.3g} mm² across the joint "
+            f"limits, {self.data_gain_mm2:.3g} mm² on the fitted poses"
+        )
+        if self.holds:
+            return said
+        return f"{said}: the fit is expected to be worse than the nominal model outside the data"
+
+    def to_dict(self) -> dict[str, Any]:
+        """The report's ``guard.extrapolation`` object."""
+        return {
+            "whole_gain_mm2": self.whole_gain_mm2,
+            "data_gain_mm2": self.data_gain_mm2,
+            "samples": self.samples,
+            "posterior_weight": self.weight,
+            "holds": self.holds,
+            "by": "mean over configurations drawn across the joint limits of |d|^2 - 2 (v_fit - v_nominal): "
+            "d the two models' difference in predicted tip position, v each model's prediction variance "
+            "from its posterior covariance",
+        }
+
+
+def region_dict(region: tuple[JointRange, ...]) -> dict[str, Any] | None:
+    """The report's and the sidecar's ``validity_region`` object (None without a region)."""
+    if not region:
+        return None
+    return {
+        "joints": [r.to_dict() for r in region],
+        "narrower_than_limits": [r.joint for r in region if r.narrow],
+        "means": "the range of each joint among the fitted poses [rad or m]: the calibration is validated "
+        "there; a joint covering less than half its limits (a turn at most) is listed as narrower",
+    }
+
+
+def region_text(region: tuple[JointRange, ...]) -> str | None:
+    """The summary's line when a joint's range is narrower than its limits, else None."""
+    narrow = [r for r in region if r.narrow]
+    if not narrow:
+        return None
+    said = ", ".join(f"{r.joint} {r.low:.3g} to {r.high:.3g} {r.unit}" for r in narrow)
+    return (
+        f"validity: the calibration holds for joint ranges {said} (the data's, under half of each "
+        "joint's limits); measure poses across the limits to calibrate beyond them"
+    )

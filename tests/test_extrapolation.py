@@ -1,0 +1,96 @@
+"""The guard sees extrapolation: a fit on poses in a small part of each joint's range that passes
+the guard on its own poses, but is worse than the nominal model across the joint limits, is
+refused (the nominal geometry exported) unless forced; a fit of a real error over the whole
+range is still exported; the report and the summary say which joint ranges the data cover."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from functools import cache
+
+import numpy as np
+import pytest
+
+import pincal
+from pincal.data.dataset import Dataset
+
+NOISE = 5e-5  # per axis [m]
+NARROW = 0.47  # margin of each range left out at both ends: poses in the central 6 %
+#: Seeds whose narrow-range fit on an exact URDF passes the guard on its own poses (the guard's
+#: own false exports, a few per hundred sessions): the cases the extrapolation check is for.
+PASSING_SEEDS = (100, 143, 193)
+WORSE = 1.05
+
+
+@cache
+def _robot() -> pincal.Robot:
+    return pincal.load_robot("ur5")
+
+
+def _session(seed: int, exact: bool, margin: float) -> tuple[Dataset, Dataset]:
+    """30 fitted poses within ``margin`` of each range and 200 new poses over the whole range."""
+    robot = _robot()
+    true = pincal.random_truth(robot, seed, tool_distance=(0.05, 0.05))
+    if exact:
+        true = replace(true, x=np.zeros_like(true.x))
+    rng = np.random.default_rng([seed, 30, 1])
+    q_fit = robot.random_configurations(30, rng, margin)
+    q_new = robot.random_configurations(200, rng, 0.0)
+    return true.measure(q_fit, NOISE, seed=seed + 7), true.measure(q_new, NOISE, seed=seed + 8)
+
+
+@cache
+def _calibrations(seed: int, exact: bool, margin: float) -> tuple[pincal.Calibration, pincal.Calibration]:
+    """The default call and the forced one."""
+    fit, new = _session(seed, exact, margin)
+    default = pincal.calibrate(_robot(), fit, params="auto", test=new)
+    forced = pincal.calibrate(_robot(), fit, params="auto", test=new, pull=pincal.Pull(force_fit=True))
+    return default, forced
+
+
+@pytest.mark.parametrize("seed", PASSING_SEEDS)
+def test_narrow_range_fit_of_an_exact_urdf_is_refused(seed: int) -> None:
+    default, forced = _calibrations(seed, True, NARROW)
+    assert forced.guard is not None and default.guard is not None
+    assert forced.guard.reliable, "the guard alone exports this fit: the case the check is for"
+    assert forced.test_after is not None and forced.test_before is not None
+    assert forced.test_after.rms_mm > WORSE * forced.test_before.rms_mm, "the fit is worse across the range"
+    assert not default.guard.kept_fit
+    assert default.guard.extrapolation is not None and not default.guard.extrapolation.holds
+    np.testing.assert_array_equal(default.theta, default.nominal_theta)  # the nominal geometry
+
+
+@pytest.mark.parametrize("seed", PASSING_SEEDS[:1])
+def test_force_fit_exports_the_narrow_fit(seed: int) -> None:
+    default, forced = _calibrations(seed, True, NARROW)
+    assert forced.guard is not None and forced.guard.kept_fit and forced.guard.forced
+    assert forced.guard.extrapolation is not None and not forced.guard.extrapolation.holds
+    assert not np.array_equal(forced.theta, forced.nominal_theta)
+    assert "exported anyway" in forced.guard.text()
+
+
+@pytest.mark.parametrize("seed", (0, 1))
+def test_whole_range_fit_of_a_real_error_is_exported(seed: int) -> None:
+    fit, new = _session(seed, False, 0.05)
+    cal = pincal.calibrate(_robot(), fit, params="auto", test=new)
+    assert cal.guard is not None and cal.guard.kept_fit
+    assert cal.guard.extrapolation is not None and cal.guard.extrapolation.holds
+    assert cal.test_after is not None and cal.test_before is not None
+    assert cal.test_after.rms_mm < cal.test_before.rms_mm
+    assert pincal.report_dict(cal, fit, new)["validity_region"]["narrower_than_limits"] == []
+
+
+def test_the_report_says_what_was_refused_and_where_the_data_are() -> None:
+    seed = PASSING_SEEDS[0]
+    default, _ = _calibrations(seed, True, NARROW)
+    fit, new = _session(seed, True, NARROW)
+    report = pincal.report_dict(default, fit, new)
+    assert report["guard"]["exported"] == "nominal"
+    assert report["guard"]["extrapolation"]["holds"] is False
+    region = report["validity_region"]
+    q = fit.q
+    for j, entry in enumerate(region["joints"]):
+        assert entry["min"] == pytest.approx(q[:, j].min()) and entry["max"] == pytest.approx(q[:, j].max())
+    assert region["narrower_than_limits"] == list(_robot().joint_names)
+    text = pincal.summary(default, fit, new)
+    assert "holds for joint ranges" in text and "not across the joint limits" in text
