@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from pincal.auto.diagnosis import Diagnosis, diagnose_with
+from pincal.auto.diagnosis import Diagnosis, diagnose_with, known_baseline
 from pincal.auto.settings import CalibrateOptions
 from pincal.errors import IdentifiabilityError
 from pincal.identify.calibration import Calibration
@@ -308,15 +308,19 @@ def _more_causes(
     """``choice`` with the further causes that pay, each sought by a diagnosis whose baseline
     holds the causes named before it (on the parameters chosen with the first), at most
     :data:`MAX_CAUSES` in all, and each counted in the F-test's correction."""
-    assert choice.extension is not None
-    effects, steps = choice.extension, []
+    assert choice.extension is not None and choice.diagnosis is not None
+    effects, steps, previous = choice.extension, [], choice.diagnosis
     for step in range(2, MAX_CAUSES + 1):
+        known = known_baseline(previous, effects)  # the previous step's cause: fitted and judged
         try:
-            diag = _diagnosis(setup, fit, options, progress, choice.params, given=effects, step=step)
+            diag = _diagnosis(
+                setup, fit, options, progress, choice.params, given=effects, step=step, baseline=known
+            )
         except IdentifiabilityError:  # the folds cannot fit one more effect
             break
         if diag.cause is None:
             break
         effects = Effects((*effects.parts, diag.cause.extension))
         steps.append(diag)
+        previous = diag
     return replace(choice, extension=effects, more=tuple(steps))

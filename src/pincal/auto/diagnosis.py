@@ -25,10 +25,12 @@ from typing import Any
 
 import numpy as np
 
-from pincal.auto.screening import Linearised, Screen
+from pincal.auto.f_tests import f_screened, f_test
+from pincal.auto.screening import Linearised
 from pincal.data.dataset import Dataset
 from pincal.identify.calibration import Calibration
 from pincal.identify.kfold import Fit, cross_validate_with
+from pincal.identify.warm import WarmStart
 from pincal.kinematics.effects import AnyEffect, Extension, candidates, combined
 from pincal.kinematics.gravity import Payload, massless
 from pincal.kinematics.stiffness import Stiffness, compliance_stiffness, implausible
@@ -239,44 +241,15 @@ class Diagnosis:
         }
 
 
-def _counted(sum_sq: float, n_res: int, pairs: bool, n_poses: int) -> tuple[float, int]:
-    """A residual sum of squares and its number of independent equations: for distance data,
-    the ``3 N - 6`` that the pairs' distances carry (``pairs``), the sum scaled to match."""
-    if not pairs:
-        return sum_sq, n_res
-    n_eq = 3 * n_poses - 6
-    return sum_sq * n_eq / n_res, n_eq
-
-
-def _rss(cal: Calibration, data: Dataset) -> tuple[float, int]:
-    """Residual sum of squares of a fit and its number of independent equations."""
-    res = cal.problem(data).residuals(cal.theta)
-    return _counted(float(res @ res), len(res), cal.measurement.measure.by_pairs, len(data))
-
-
-def _f_value(rss0: float, rss1: float, extra: int, dof: int) -> float:
-    """p-value of the F-test of ``extra`` more parameters, ``dof`` residual degrees of freedom."""
-    if extra <= 0 or dof <= 0 or rss1 <= 0:
-        return 1.0
-    from scipy.special import fdtrc  # here: SciPy's special functions are start-up a run may not pay
-
-    return float(fdtrc(extra, dof, ((rss0 - rss1) / extra) / (rss1 / dof)))
-
-
-def _f_test(base: Calibration, ext: Calibration, data: Dataset) -> float:
-    rss0, n_eq = _rss(base, data)
-    rss1, _ = _rss(ext, data)
-    extra = ext.identifiability.n_identifiable - base.identifiability.n_identifiable
-    return _f_value(rss0, rss1, extra, n_eq - ext.identifiability.n_identifiable)
-
-
-def _f_screened(base: Calibration, lin: Linearised, screen: Screen, extra: int) -> float:
-    """The F-test of a candidate only screened: its linearised fit's residual sum against the
-    base's (whose residuals ``lin`` holds)."""
-    kind, n_poses, n_res = lin.kind.by_pairs, len(lin.data), len(lin.residuals)
-    rss0, n_eq = _counted(float(lin.residuals @ lin.residuals), n_res, kind, n_poses)
-    rss1, _ = _counted(screen.rss, n_res, kind, n_poses)
-    return _f_value(rss0, rss1, extra, n_eq - base.identifiability.n_identifiable - extra)
+def known_baseline(previous: Diagnosis, given: AnyEffect) -> Candidate | None:
+    """The baseline of the diagnosis that seeks a cause beyond ``given``, when the ``previous``
+    diagnosis (on the same poses, parameters and options) already fitted and cross-validated it:
+    its named cause, if that is ``given`` (fitted ``partial``: the rank check a baseline's own
+    fit makes is made by the calibration's final fit, on these parameters and every cause)."""
+    cause = previous.cause
+    if cause is None or cause.calibration is None or cause.calibration.extension is None:
+        return None
+    return cause if cause.calibration.extension.label == given.label else None
 
 
 @limited
@@ -294,19 +267,27 @@ def diagnose_with(
     quick: bool = False,
     given: AnyEffect | None = None,
     step: int = 1,
+    baseline: Candidate | None = None,
     **options: Any,
 ) -> Diagnosis:
     """:func:`pincal.auto.diagnose.diagnose` (its arguments and answer) with the calibration ``fit``,
     called as ``fit(robot, data, model, measure, **options)``; with ``given``, the baseline holds
     those effects and each candidate is added to them (the ``step``-th cause sought: the F-test's
-    correction counts the candidates of every step)."""
+    correction counts the candidates of every step); ``baseline``: the baseline's fit and
+    cross-validated RMS when already known (:func:`known_baseline`), not fitted again."""
     options = {k: v for k, v in options.items() if k != "extension"}
     options["deliver"] = "none"  # a cause is named by the joint fit of geometry and effect
     held = given.parts if given is not None else ()
     taken = {e.label for e in held}
     pool = [e for e in (candidates(robot, payload) if effects is None else effects) if e.label not in taken]
-    base = fit(robot, data, model, measure, extension=given, **options)  # first: says if the data falls short
-    base_cv = cross_validate_with(fit, robot, data, model, measure, folds, seed, extension=given, **options)
+    if baseline is None or baseline.calibration is None:
+        base = fit(robot, data, model, measure, extension=given, **options)  # first: the data may fall short
+        options["start"] = WarmStart.of(base)  # the folds and the candidates begin at the baseline's fit
+        cv = cross_validate_with(fit, robot, data, model, measure, folds, seed, extension=given, **options)
+        base_rms = cv.after.rms_mm
+    else:
+        base, base_rms = baseline.calibration, baseline.cv_rms_mm
+        options["start"] = WarmStart.of(base)
     lin = Linearised(base, data, folds, seed)
     total = len(pool) + min(FINALISTS, len(pool))
     screens = []
@@ -319,7 +300,7 @@ def diagnose_with(
     screens.sort(key=lambda item: item[1].cv_rms_mm)
     options["partial"] = True
     finalists: list[Candidate] = []
-    n_final, base_rms = min(FINALISTS, len(screens)), base_cv.after.rms_mm
+    n_final = min(FINALISTS, len(screens))
     if quick:
         n_final = sum(base_rms / s.cv_rms_mm >= QUICK_GAIN for _, s in screens[:n_final])
     for k, (ext, _) in enumerate(screens[:n_final]):
@@ -331,11 +312,12 @@ def diagnose_with(
             full.model.n_params : full.model.n_params + ext.n_params + sum(e.n_params for e in held)
         ].all():
             continue
-        cv = cross_validate_with(fit, robot, data, model, measure, folds, seed, extension=both, **options)
-        finalists.append(Candidate(ext, cv.after.rms_mm, _f_test(base, full, data), full, data.q))
+        warm = {**options, "start": WarmStart.of(full)}  # its folds begin at its fit on all poses
+        cv = cross_validate_with(fit, robot, data, model, measure, folds, seed, extension=both, **warm)
+        finalists.append(Candidate(ext, cv.after.rms_mm, f_test(base, full, data), full, data.q))
     finalists.sort(key=lambda c: c.cv_rms_mm)
     screened = [
-        Candidate(ext, s.cv_rms_mm, _f_screened(base, lin, s, ext.n_params), None, data.q, s.params)
+        Candidate(ext, s.cv_rms_mm, f_screened(base, lin, s, ext.n_params), None, data.q, s.params)
         for ext, s in screens[n_final:]
     ]
     judged = finalists + screened

@@ -25,6 +25,7 @@ from pincal.identify.guard import DEFAULT_PULL, Protected, Pull, protect
 from pincal.identify.identifiability import RCOND, Identifiability
 from pincal.identify.kfold import cross_validate_with
 from pincal.identify.solver import Setup, assess, identifiable_set, register, screen_outliers, set_up, solve
+from pincal.identify.warm import WarmStart
 from pincal.kinematics.effects import AnyEffect, Effects, Extension
 from pincal.kinematics.models import Model
 from pincal.plausibility.judge import judge_calibration
@@ -43,16 +44,19 @@ def fit(
     nominal: np.ndarray | None = None,
     every: Identifiability | None = None,
     pull: Pull = DEFAULT_PULL,
+    start: WarmStart | None = None,
 ) -> Protected:
     """Register (unless the registration-only θ ``nominal`` is given), find the identifiable set
     (``every``, when given, is the one of every parameter at ``nominal``: used for ``params``
     None), choose the pull toward the URDF and solve, and judge the fit against the nominal model
-    (:func:`pincal.identify.guard.protect`)."""
-    nominal = register(setup) if nominal is None else nominal
+    (:func:`pincal.identify.guard.protect`); the fit begins at the fit ``start`` when given
+    (:mod:`pincal.identify.warm`: the same minimum, in fewer steps), else at the nominal model."""
+    nominal = register(setup) if nominal is None else nominal  # its first guess is as good a start
     known = every if params is None else None
     ident = identifiable_set(setup, nominal, params, partial, rcond) if known is None else known
-    base, _ = solve(setup, nominal, ident.identifiable, loss, f_scale)  # at the default pull
-    return protect(setup, nominal, ident, base, pull, loss, f_scale)
+    first = nominal if start is None else start.fit(setup.problem, nominal, ident.identifiable)
+    base, _ = solve(setup, first, ident.identifiable, loss, f_scale)  # at the default pull
+    return replace(protect(setup, nominal, ident, base, pull, loss, f_scale), base=base)
 
 
 def _kept_pairs(pairs: str | np.ndarray, n: int, keep: np.ndarray) -> str | np.ndarray:
@@ -126,7 +130,7 @@ def _calibrated(
     """The calibration ``asked`` of ``what`` (model and measure) on ``data``, unjudged."""
     wanted, ext = asked.wanted(), asked.effect(robot)
     setup, choice, wanted, chosen, opts = _chosen(robot, data, what, wanted, ext, asked, progress)
-    found = fit(setup, wanted, **chosen, **opts.fitting())
+    found = fit(setup, wanted, **chosen, **opts.fitting(), start=opts.start)
     bad, scores = screen_outliers(*found.screening, found.free, opts.outliers or 0.0, opts.f_scale)
     if bad.size and choice.diagnosis is not None and choice.diagnosis.candidates:
         bad = _outliers_for_both(setup, choice, bad, wanted, opts)

@@ -20,6 +20,7 @@ from pincal.identify.fixed_points import PointDistance
 from pincal.identify.guard import DEFAULT_PULL, Pull
 from pincal.identify.identifiability import RCOND
 from pincal.identify.solver import SETUP_KEYS
+from pincal.identify.warm import WarmStart
 from pincal.kinematics.effects import AnyEffect, Extension, combined
 from pincal.kinematics.gravity import Payload
 from pincal.options import LOSSES, ROTATION_WEIGHT
@@ -63,6 +64,9 @@ class CalibrateOptions:
             :mod:`pincal.auto.balance`), ``joint`` (one geometry, fitted with the effects) or
             ``none`` (joint, gravity on the nominal URDF: the diagnosis' inner fits).
         pull: the pull toward the URDF, and when the fit is exported.
+        start: a fit to begin the solves from (:class:`~pincal.identify.warm.WarmStart`: a fold's
+            from the fit on all poses); the answer is the same minimum, found in fewer steps.
+            None: from the nominal model.
     """
 
     instrument_T_base: pin.SE3 | None = None
@@ -83,6 +87,7 @@ class CalibrateOptions:
     nested: bool | None = False
     deliver: str = "complete"
     pull: Pull = DEFAULT_PULL
+    start: WarmStart | None = None
 
     def __post_init__(self) -> None:
         """Refuse a loss or a delivery that is not one of its choices."""

@@ -60,6 +60,9 @@ class Calibration:
             registration and tool fitted without the effects (the best URDF alone); the sidecar's
             ``complete`` then carries what the full model changes beyond it. None: the URDF holds
             this calibration's own geometry.
+        default_pull_theta: the fit at the default pull (:data:`pincal.identify.solver.PRIOR_WEIGHT`)
+            from which the fit at the chosen weight was solved, or None: where a fit of nearly
+            the same poses at that pull begins (:mod:`pincal.identify.warm`).
     """
 
     model: Model
@@ -90,6 +93,7 @@ class Calibration:
     plausibility: Judgement | None = None
     urdf_fit: Calibration | None = None
     converged: bool = True
+    default_pull_theta: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def written(self) -> Calibration:

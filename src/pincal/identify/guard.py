@@ -177,6 +177,8 @@ class Protected:
         screening: the problem and fit the outliers are screened on: the default pull's fit
             (:data:`pincal.identify.solver.PRIOR_WEIGHT`) when the weight is chosen, as its choice is made
             for Gaussian residuals and gross outliers would inflate it; else the fit.
+        base: the fit at the default pull, from which the fit at the chosen weight was solved
+            (set by :func:`pincal.auto.pipeline.fit`; None: not recorded).
     """
 
     setup: Setup
@@ -187,6 +189,7 @@ class Protected:
     prior: PriorChoice
     guard: Guard
     screening: tuple[Setup, np.ndarray]
+    base: np.ndarray | None = None
 
     @property
     def free(self) -> np.ndarray:
@@ -196,7 +199,7 @@ class Protected:
     def assessed(self, test: Dataset | None = None) -> Calibration:
         """The calibration record (:func:`pincal.identify.solver.assess`) with the pull and the guard."""
         cal = assess(self.setup, self.theta, self.nominal, self.identifiability, self.result, test)
-        return replace(cal, prior=self.prior, guard=self.guard)
+        return replace(cal, prior=self.prior, guard=self.guard, default_pull_theta=self.base)
 
 
 def protect(
