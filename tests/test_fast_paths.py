@@ -8,6 +8,7 @@
 - one BLAS thread by default, ``PINCAL_THREADS`` and ``--threads`` to change it;
 - the folds of a cross-validation run in two processes, and the answer is bit-for-bit the
   serial one;
+- Levenberg-Marquardt finds SciPy's least-squares minimum, and follows a curved valley to it;
 - ``import pincal`` and ``pincal --help`` load neither NumPy nor Pinocchio; ``calibrate`` and
   ``diagnose`` load neither ``scipy.optimize`` nor ``scipy.special`` (0.3 s of start-up) until a
   robust loss or an F-test needs them.
@@ -163,6 +164,24 @@ def test_levenberg_marquardt_finds_least_squares_minimum(seed: int) -> None:
     assert np.allclose(ours.x, reference.x, rtol=1e-7, atol=1e-9)
     assert ours.cost == pytest.approx(reference.cost, rel=1e-10)
     assert np.abs(jac(ours.x).T @ fun(ours.x)).max() < 1e-9  # the normal equations hold
+
+
+@pytest.mark.parametrize("start", [(-1.2, 1.0), (-2.0, 2.0), (-0.8, 1.5)])
+def test_levenberg_marquardt_follows_a_curved_valley(start: tuple[float, float]) -> None:
+    """Rosenbrock's valley as least squares: the damping that follows the gain ratio reaches its
+    minimum within the evaluations a fit may take (a factor of 10 each way crawls and stops short)."""
+    from pincal.identify.lm import levenberg_marquardt
+    from pincal.identify.solver import MAX_EVALUATIONS
+
+    def fun(x: np.ndarray) -> np.ndarray:
+        return np.array([100.0 * (x[1] - x[0] ** 2), 1.0 - x[0]])
+
+    def jac(x: np.ndarray) -> np.ndarray:
+        return np.array([[-200.0 * x[0], 100.0], [-1.0, 0.0]])
+
+    found = levenberg_marquardt(fun, jac, np.array(start), np.ones(2), max_nfev=MAX_EVALUATIONS)
+    assert found.success, found.message
+    assert np.allclose(found.x, [1.0, 1.0], atol=1e-8)
 
 
 def test_parallel_map_uses_two_processes_in_order() -> None:

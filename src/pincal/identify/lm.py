@@ -7,6 +7,13 @@ this machine kind), and that QR is most of an iteration. This is the same method
 scaled variables, the Gauss-Newton step when it lowers the cost, else a damped one) with one
 LAPACK QR of ``[J r]`` per Jacobian; damped steps only need the small ``n × n`` triangle.
 Robust losses keep ``least_squares`` (trust-region reflective).
+
+The damping follows the step's gain ratio ``ρ`` (actual over predicted fall of the cost; Nielsen
+1999, Madsen, Nielsen & Tingleff 2004 §3.1): after a step that lowers the cost it is multiplied
+by ``max(1/3, 1 - (2ρ - 1)³)``, after one that does not by 2, 4, 8... A fixed factor of 10 each
+way makes every third step fail in a curved, narrow valley (a selection that keeps two nearly
+equivalent rotations: a joint's and the registration's) and crawls along it: on TIAGo's day,
+about 50 Jacobians where this takes 15 (MINPACK 12) to the same minimum.
 """
 
 from __future__ import annotations
@@ -37,8 +44,17 @@ class OptimizeResult(dict[str, Any]):
 
 #: First damping, relative to the largest diagonal entry of ``JᵀJ``, when the Gauss-Newton step fails.
 FIRST_DAMPING = 1e-4
-#: Damping grows by this factor after a failed step and shrinks by it after a successful one.
-DAMPING_FACTOR = 10.0
+#: Damping grows by this factor after a first failed step, and the factor doubles after each
+#: further one (reset by a successful step).
+DAMPING_GROWTH = 2.0
+#: A successful step divides the damping by at most this factor (when ``ρ`` is near 1).
+DAMPING_FALL = 3.0
+
+
+def damped_less(damping: float, ratio: float) -> float:
+    """The damping after a step that lowered the cost, its gain ratio ``ratio`` (actual over
+    predicted fall): a third of it when the linear model predicted well, more when it did not."""
+    return damping * max(1.0 / DAMPING_FALL, 1.0 - (2.0 * ratio - 1.0) ** 3)
 
 
 def _step(tri: np.ndarray, qtr: np.ndarray, damping: float) -> np.ndarray:
@@ -76,7 +92,7 @@ def levenberg_marquardt(
             not called: every step needs only R.
     """
     x, res = np.array(x0, dtype=float), fun(x0)
-    cost, nfev, njev, damping = 0.5 * float(res @ res), 1, 0, 0.0
+    cost, nfev, njev, damping, growth = 0.5 * float(res @ res), 1, 0, 0.0, DAMPING_GROWTH
     status, message = 0, "the maximum number of function evaluations is exceeded"
     while nfev < max_nfev and status == 0:
         if triangle is None:
@@ -103,8 +119,10 @@ def levenberg_marquardt(
             predicted = 0.5 * float(qtr @ qtr - np.sum((tri @ step + qtr) ** 2))  # by the linear model
             if cost_trial < cost:
                 converged = cost - cost_trial <= ftol * cost and predicted <= ftol * cost
+                ratio = (cost - cost_trial) / predicted if predicted > 0.0 else 1.0
                 x, res, cost = trial, res_trial, cost_trial
-                damping = damping / DAMPING_FACTOR if damping > 1e-12 * largest else 0.0
+                damping = damped_less(damping, ratio) if damping > 1e-12 * largest else 0.0
+                growth = DAMPING_GROWTH
                 if converged:
                     status, message = 2, "ftol: the cost no longer falls"
                 elif small:
@@ -116,7 +134,7 @@ def levenberg_marquardt(
             if predicted <= ftol * cost:  # even the linear model has nothing left to gain
                 status, message = 2, "ftol: the cost no longer falls"
                 break
-            damping = max(damping * DAMPING_FACTOR, FIRST_DAMPING * largest)
+            damping, growth = max(damping * growth, FIRST_DAMPING * largest), 2.0 * growth
     return OptimizeResult(
         x=x, cost=cost, fun=res, nfev=nfev, njev=njev, status=status, success=status > 0, message=message
     )
