@@ -40,6 +40,7 @@ from pincal.identify.measurement import Measurement, held_markers, marker_setup
 from pincal.identify.measurements import Problem
 from pincal.identify.outliers import find_outliers
 from pincal.identify.registration import initial_measurement
+from pincal.identify.registrations import REGISTRATIONS
 from pincal.identify.uncertainty import posterior_std
 from pincal.kinematics.effects import AnyEffect
 from pincal.kinematics.mdh import make_model
@@ -202,11 +203,14 @@ def solve(
 
 def register(setup: Setup, with_extension: bool = False) -> np.ndarray:
     """θ of the nominal model with only the registration and tool fitted (and the extension,
-    when ``with_extension``): the "before" of a report and the start of every fit."""
+    when ``with_extension``): the "before" of a report and the start of every fit; solved once
+    per set of poses and set-up (:mod:`pincal.identify.registrations`)."""
     problem = setup.problem
     theta = problem.initial_theta()
     first = problem.model.n_params if with_extension else problem.n_model
     free = np.arange(problem.n_params) >= first
+    if free.any() and not with_extension:  # the same for every fit on these poses: solved once
+        return REGISTRATIONS.solved(problem, setup.scale, "nominal", lambda: solve(setup, theta, free)[0])
     if free.any():
         theta, _ = solve(setup, theta, free)
     return theta
@@ -300,7 +304,11 @@ def assess(
     if urdf_meas.n_instrument:
         urdf_theta[n_model:] = theta[n_model : n_model + 6]
         urdf_setup = Setup(urdf_problem, setup.scale[: urdf_problem.n_params], setup.tool)
-        urdf_theta, _ = solve(urdf_setup, urdf_theta, np.arange(urdf_problem.n_params) >= n_model)
+        free = np.arange(urdf_problem.n_params) >= n_model
+        start = urdf_theta
+        urdf_theta = REGISTRATIONS.solved(  # as the nominal's: the same on these poses for every fit
+            urdf_problem, urdf_setup.scale, "urdf", lambda: solve(urdf_setup, start, free)[0]
+        )
 
     std = posterior_std(setup.problem, setup.scale, setup.prior_weight, theta, ident.identifiable)
 
