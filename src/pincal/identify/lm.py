@@ -49,6 +49,9 @@ FIRST_DAMPING = 1e-4
 DAMPING_GROWTH = 2.0
 #: A successful step divides the damping by at most this factor (when ``ρ`` is near 1).
 DAMPING_FALL = 3.0
+#: Damping beyond this, relative to the largest diagonal entry of ``JᵀJ``, moves x by less than
+#: any tolerance: the search stops there (the growth would otherwise overflow on a flat cost).
+MAX_DAMPING = 1e20
 
 
 def damped_less(damping: float, ratio: float) -> float:
@@ -135,6 +138,9 @@ def levenberg_marquardt(
                 status, message = 2, "ftol: the cost no longer falls"
                 break
             damping, growth = max(damping * growth, FIRST_DAMPING * largest), 2.0 * growth
+            if damping > MAX_DAMPING * largest:  # no step short enough to trust lowers the cost
+                status, message = 3, "xtol: the step is below the tolerance"
+                break
     return OptimizeResult(
         x=x, cost=cost, fun=res, nfev=nfev, njev=njev, status=status, success=status > 0, message=message
     )
