@@ -288,7 +288,7 @@ def diagnose_with(
     else:
         base, base_rms = baseline.calibration, baseline.cv_rms_mm
         options["start"] = WarmStart.of(base)
-    lin = Linearised(base, data, folds, seed)
+    lin = Linearised(base, data, folds, seed, pool)  # every candidate's columns in one pass
     total = len(pool) + min(FINALISTS, len(pool))
     screens = []
     for k, ext in enumerate(pool):

@@ -7,6 +7,13 @@ nonlinear solve: each fold's fit is the least-squares ``δ`` of the other folds'
 held-out error is ``r + [J E] δ`` on the fold's rows. ``J``'s part of the normal equations is
 formed once per fold and shared by every candidate; a candidate adds ``Jᵀ E`` and ``Eᵀ E``.
 
+Nothing of size rows × unknowns is held: one pass over the poses (block by block for a large
+problem, :mod:`pincal.identify.chunked`) sums the Gram matrix of ``[J E r]`` (``E`` the columns of
+every candidate given, at once) for each group of rows held out in the same folds, apart for the
+rows a held-out error counts (a pose's position rows). A fold's fit is then the normal equations
+of the groups it trains on, and its held-out errors' sum of squares the quadratic form
+``[δ; 1]ᵀ Z [δ; 1]`` of the groups it holds out.
+
 :func:`pincal.auto.diagnose.diagnose` ranks the candidates by this linearised cross-validated RMS and
 runs the nonlinear calibration and cross-validation only for the few best. The folds, the
 held-out errors (a pose's 3-D position error; for distance data every pair with a held-out pose)
@@ -15,11 +22,13 @@ and the F-test's residual sums are those of the nonlinear path.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from pincal.data.dataset import Dataset
+from pincal.identify import chunked
 from pincal.identify.calibration import Calibration
 from pincal.identify.folds import pose_folds
 from pincal.identify.identifiability import RCOND
@@ -44,73 +53,138 @@ class Screen:
     identifiable: bool
 
 
+class GroupSums:
+    """Gram matrices of rows ``X`` (here ``[J E r]``) summed by group: a group is the set of folds
+    its rows are held out in (a bit mask), the rows a held-out error counts apart."""
+
+    def __init__(self) -> None:
+        self.counted: dict[int, np.ndarray] = {}
+        self.other: dict[int, np.ndarray] = {}
+        self.n_counted: dict[int, int] = {}
+
+    def add(self, rows: np.ndarray, groups: np.ndarray, counted: np.ndarray) -> None:
+        """Add rows (R, c), each row's group (R,) and whether a held-out error counts it (R,)."""
+        for group in np.unique(groups).tolist():
+            here = groups == group
+            for into, which in ((self.counted, here & counted), (self.other, here & ~counted)):
+                part = rows[which]
+                into[group] = into.get(group, 0.0) + part.T @ part
+            self.n_counted[group] = self.n_counted.get(group, 0) + int(np.count_nonzero(here & counted))
+
+    def gram(self, fold: int | None = None, held: bool = False) -> np.ndarray:
+        """``XᵀX`` over every row (``fold`` None), the rows fold ``fold`` trains on, or (``held``)
+        the counted rows it holds out."""
+        out: np.ndarray | float = 0.0
+        for group in sorted(self.counted):
+            inside = fold is not None and bool(group >> fold & 1)
+            if fold is None or inside == held:
+                out = out + self.counted[group] + (0.0 if held else self.other[group])
+        return np.asarray(out)
+
+    def n_held(self, fold: int) -> int:
+        """Counted rows fold ``fold`` holds out."""
+        return sum(n for group, n in self.n_counted.items() if group >> fold & 1)
+
+
 class Linearised:
-    """The geometric fit's residuals and Jacobian, split by folds, ready for extra columns."""
+    """The geometric fit's residuals and Jacobian, summed by folds, ready for extra columns.
 
-    def __init__(self, base: Calibration, data: Dataset, folds: int, seed: int) -> None:
+    Args:
+        base: the geometric fit.
+        data: its poses.
+        folds: number of folds; seed: their seed (:func:`pincal.identify.folds.pose_folds`).
+        pool: candidate effects whose columns are summed in the same pass (others are summed
+            when screened, one more pass each).
+    """
+
+    def __init__(
+        self, base: Calibration, data: Dataset, folds: int, seed: int, pool: Sequence[AnyEffect] | None = None
+    ) -> None:
         self.base, self.data = base, data
-        problem = base.problem(data)
         self.kind = base.measurement.measure
-        self.residuals = problem.residuals(base.theta)
         self.free = np.flatnonzero(base.identifiability.identifiable)
-        jac = problem.jacobian(base.theta, self.free)
-        self.norms = np.where((n := np.linalg.norm(jac, axis=0)) > 0, n, 1.0)
-        self.jac = jac / self.norms  # unit columns: the normal equations stay well scaled
-        pose_of_row = self.kind.owners(problem)
-        self.folds: list[tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]]] = []
-        for held in pose_folds(data, folds, seed):
-            in_held = np.isin(pose_of_row, held)
-            test = np.asarray(in_held.any(axis=1))
-            train = ~test
-            j_train = self.jac[train]
-            normal = (j_train.T @ j_train, j_train.T @ self.residuals[train])
-            self.folds.append((train, test, normal))
-        self.gram = (self.jac.T @ self.jac, self.jac.T @ self.residuals)
+        held = pose_folds(data, folds, seed)
+        self.n_folds = len(held)
+        self.bits = np.zeros(len(data) + 1, dtype=np.int64)  # last: no pose (a known distance's row)
+        for k, rows in enumerate(held):
+            self.bits[rows] |= 1 << k
+        self.large = chunked.is_large(base.problem(data))
+        self.sums, self.columns, self.residuals = self._pass(list(pool or []))
+        diag = np.diag(self.sums.gram())[: len(self.free)]
+        self.norms = np.where(diag > 0, np.sqrt(diag), 1.0)
 
-    def extra_columns(self, extension: AnyEffect) -> np.ndarray:
-        """The effect's Jacobian columns at θ̂ (its parameters zero), after the effects the base
-        fit already holds."""
+    def _parts(self) -> list[tuple[Dataset, int]]:
+        """The data in blocks of poses with their first pose's index (one part unless large)."""
+        if not self.large:
+            return [(self.data, 0)]
+        n, size = len(self.data), chunked.BLOCK_POSES
+        return [(self.data.subset(np.arange(a, min(a + size, n))), a) for a in range(0, n, size)]
+
+    def _pass(self, pool: Sequence[AnyEffect]) -> tuple[GroupSums, dict[str, np.ndarray], np.ndarray]:
+        """One pass over the poses: the sums of ``[J E r]`` with the columns ``E`` of every effect
+        of ``pool`` (after the effects the base fit holds), each effect's columns in ``E``, and
+        the residuals."""
         base = self.base
         n_model = base.model.n_params + (base.extension.n_params if base.extension is not None else 0)
         held = base.extension.parts if base.extension is not None else ()
-        both = combined([*held, *extension.parts])
-        problem = Problem(base.model, replace(base.measurement, pairs=None), self.data, both)
-        theta = np.concatenate([base.theta[:n_model], np.zeros(extension.n_params), base.theta[n_model:]])
-        return problem.jacobian(theta, np.arange(n_model, n_model + extension.n_params))
+        both = combined([*held, *(part for ext in pool for part in ext.parts)])
+        n_new = sum(ext.n_params for ext in pool)
+        theta = np.concatenate([base.theta[:n_model], np.zeros(n_new), base.theta[n_model:]])
+        moved = np.where(self.free < n_model, self.free, self.free + n_new)
+        cols = np.concatenate([moved, np.arange(n_model, n_model + n_new)]).astype(int)
+        columns, at = {}, len(self.free)
+        for ext in pool:
+            columns[ext.label], at = np.arange(at, at + ext.n_params), at + ext.n_params
+        sums, residuals, width = GroupSums(), [], self.kind.width
+        measurement = replace(base.measurement, pairs=None)
+        for part, first in self._parts():
+            problem = Problem(base.model, measurement, part, both)
+            res, jac = problem.rows(theta, cols)
+            owners = self.kind.owners(problem)
+            groups = np.bitwise_or.reduce(self.bits[np.where(owners >= 0, owners + first, -1)], axis=1)
+            sums.add(np.column_stack([jac, res]), groups, np.arange(len(res)) % width < 3)
+            residuals.append(res)
+        return sums, columns, np.concatenate(residuals)
 
-    def _held_out(self, test: np.ndarray, predicted: np.ndarray) -> np.ndarray:
-        """Held-out errors [m]: per pose the 3-D position error, per pair the distance error."""
-        return self.kind.held_out(predicted)
+    def _sums_of(self, extension: AnyEffect | None) -> tuple[GroupSums, np.ndarray]:
+        """The sums holding ``extension``'s columns, and the indices of ``[J E r]`` in them."""
+        n_base = len(self.free)
+        if extension is None:
+            return self.sums, np.append(np.arange(n_base), -1)
+        sums, columns = self.sums, self.columns
+        if extension.label not in columns:
+            sums, columns, _ = self._pass([extension])
+        return sums, np.concatenate([np.arange(n_base), columns[extension.label], [-1]])
 
     def screen(self, extension: AnyEffect | None = None) -> Screen:
         """The linearised cross-validation and all-row fit, with ``extension``'s columns or none."""
-        extra = np.empty((len(self.residuals), 0)) if extension is None else self.extra_columns(extension)
-        e_norms = np.where((n := np.linalg.norm(extra, axis=0)) > 0, n, 1.0)
-        extra = extra / e_norms
-        n_base = self.jac.shape[1]
+        sums, take = self._sums_of(extension)
+        n_base = len(self.free)
+        total = sums.gram()[np.ix_(take, take)]
+        norms = np.sqrt(np.diag(total)[:-1])
+        norms = np.where(norms > 0, norms, 1.0)
+        scale = np.append(1.0 / norms, 1.0)  # unit columns: the normal equations stay well scaled
+        total = total * np.outer(scale, scale)
 
-        def fit(
-            jac: np.ndarray, ext: np.ndarray, res: np.ndarray, gram: tuple[np.ndarray, np.ndarray]
-        ) -> np.ndarray:
-            """The least-squares step of ``res + [jac ext] δ`` (``gram``: ``jacᵀ jac``, ``jacᵀ res``)."""
-            je = jac.T @ ext
-            lhs = np.block([[gram[0], je], [je.T, ext.T @ ext]])
-            return -np.linalg.lstsq(lhs, np.concatenate([gram[1], ext.T @ res]), rcond=1e-12)[0]
+        def cut(gram: np.ndarray) -> np.ndarray:
+            """``gram``'s rows and columns of ``[J E r]``, scaled to unit columns."""
+            return gram[np.ix_(take, take)] * np.outer(scale, scale)
 
-        def predict(rows: np.ndarray, step: np.ndarray) -> np.ndarray:
-            return self.residuals[rows] + self.jac[rows] @ step[:n_base] + extra[rows] @ step[n_base:]
+        def fit(gram: np.ndarray) -> np.ndarray:
+            """``[δ; 1]`` for the least-squares step of ``r + [J E] δ`` on the rows of ``gram``."""
+            step = -np.linalg.lstsq(gram[:-1, :-1], gram[:-1, -1], rcond=1e-12)[0]
+            return np.append(step, 1.0)
 
-        errors = []
-        for train, test, gram in self.folds:
-            step = fit(self.jac[train], extra[train], self.residuals[train], gram)
-            errors.append(self._held_out(test, predict(test, step)))
-        pooled = np.concatenate(errors)
-        every = np.arange(len(self.residuals))
-        step = fit(self.jac, extra, self.residuals, self.gram)
-        rss = float(np.sum(predict(every, step) ** 2))
-        jj, je, ee = self.gram[0], self.jac.T @ extra, extra.T @ extra
+        squares, entries = 0.0, 0
+        for k in range(self.n_folds):
+            step = fit(cut(sums.gram(k)))
+            squares += max(float(step @ cut(sums.gram(k, held=True)) @ step), 0.0)
+            entries += sums.n_held(k) // min(self.kind.width, 3)
+        step = fit(total)
+        rss = max(float(step @ total @ step), 0.0)
+        jj, je, ee = total[:n_base, :n_base], total[:n_base, n_base:-1], total[n_base:-1, n_base:-1]
         # what of the effect's columns the geometry cannot absorb (Schur complement, unit columns)
-        schur = ee - je.T @ np.linalg.lstsq(jj, je, rcond=1e-12)[0] if extra.shape[1] else np.ones((1, 1))
+        schur = ee - je.T @ np.linalg.lstsq(jj, je, rcond=1e-12)[0] if ee.shape[0] else np.ones((1, 1))
         identifiable = bool(np.sqrt(max(float(np.linalg.eigvalsh(schur).min()), 0.0)) > RCOND)
-        params = step[n_base:] / e_norms
-        return Screen(float(np.sqrt(np.mean(pooled**2))) * 1e3, rss, params, identifiable)
+        params = step[n_base:-1] / norms[n_base:]
+        return Screen(float(np.sqrt(squares / max(entries, 1))) * 1e3, rss, params, identifiable)

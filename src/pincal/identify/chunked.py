@@ -21,7 +21,7 @@ Distance and fixed-point data (rows of pairs, points shared by rows) are not spl
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import replace
 from typing import Any, ClassVar, Protocol, TypeVar
 
@@ -140,6 +140,20 @@ def gram(problem: ProblemRows, theta: np.ndarray, free: np.ndarray) -> np.ndarra
         _forget(block)
         out += j.T @ j
     return out
+
+
+def row_blocks(
+    problem: ProblemRows, theta: np.ndarray, cols: np.ndarray
+) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """Residuals and Jacobian rows (columns ``cols``) of ``problem``: block by block for a large
+    problem (each block's rows are residual rows of whole poses, in order), else all at once."""
+    if not is_large(problem):
+        yield problem.rows(theta, cols)
+        return
+    for block in blocks(problem):
+        rows = block.rows(theta, cols)
+        _forget(block)
+        yield rows
 
 
 def normal_terms(

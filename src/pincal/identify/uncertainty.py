@@ -57,17 +57,24 @@ def pose_std(
     """Standard deviations [m or rad] of a pose fit, whose position and orientation rows carry
     noise of different sizes: the estimator's covariance ``M Jᵀ D J M`` (``M = (JᵀJ + w²P)⁻¹``,
     ``D`` each row's noise variance), each kind's variance from its residual rows
-    ``Σ r² / Σ (1 - h)`` (``h`` the hat matrix's diagonal)."""
+    ``Σ r² / Σ (1 - h)`` (``h`` the hat matrix's diagonal, ``Σ h = tr(M J_kᵀ J_k)`` over the
+    kind's rows ``J_k``): ``J_kᵀ J_k`` and ``Σ r²`` of each kind are summed block by block."""
     std = np.zeros(problem.n_params)
     scale = scale[free]
-    jac, res, inverse = _pulled_normal(problem, scale, weight, theta, free)
-    left = 1.0 - np.einsum("ij,jk,ik->i", jac, inverse, jac)
     width = problem.measurement.measure.width
-    turned = (np.arange(len(res)) % width) >= 3
-    variance = np.empty(len(res))
-    for rows in (turned, ~turned):
-        variance[rows] = float(res[rows] @ res[rows]) / max(float(left[rows].sum()), 1e-12)
-    cov = inverse @ (jac.T @ (jac * variance[:, None])) @ inverse
+    grams, squares, counts = np.zeros((2, len(scale), len(scale))), np.zeros(2), np.zeros(2)
+    for res, jac in chunked.row_blocks(problem, theta, np.arange(problem.n_params)[free]):
+        jac = jac * scale
+        turned = (np.arange(len(res)) % width) >= 3  # a block's rows start at a pose's first row
+        for kind, rows in enumerate((turned, ~turned)):
+            grams[kind] += jac[rows].T @ jac[rows]
+            squares[kind] += float(res[rows] @ res[rows])
+            counts[kind] += float(np.count_nonzero(rows))
+    pen = np.arange(int(free.sum())) < int(free[: problem.model.n_params].sum())
+    inverse = np.linalg.pinv(grams.sum(axis=0) + weight**2 * np.diag(pen.astype(float)))
+    left = counts - np.einsum("ij,kji->k", inverse, grams)  # Σ (1 - h) of each kind
+    variance = squares / np.maximum(left, 1e-12)
+    cov = inverse @ np.einsum("k,kij->ij", variance, grams) @ inverse
     std[free] = np.sqrt(np.clip(np.diag(cov), 0.0, None)) * scale
     return std
 

@@ -45,21 +45,28 @@ class Payload:
 
 
 #: The last few :func:`gravity_torques` answers: a diagnosis asks for the same poses' torques
-#: for every loaded joint's compliance and backlash, and each costs a Pinocchio call per pose.
+#: for every loaded joint's compliance and backlash, and each costs a Pinocchio call per pose. A
+#: large problem asks block by block (:mod:`pincal.identify.chunked`), so what is kept is bounded
+#: by rows (every block of a million poses is kept), not by answers.
 _GRAVITY: list[tuple[Robot, Payload | None, bytes, np.ndarray]] = []
-_GRAVITY_KEPT = 4
+#: Rows of torques kept at most (48 MB for a 6-joint arm).
+_GRAVITY_ROWS = 1_000_000
+#: Answers kept at most.
+_GRAVITY_KEPT = 64
 
 
 def gravity_torques(robot: Robot, q: np.ndarray, payload: Payload | None = None) -> np.ndarray:
     """Gravity torque each chain joint carries [N·m or N] at configurations ``q`` (N, n), from the
     URDF's inertias and an optional payload on the tip."""
     key = np.ascontiguousarray(np.atleast_2d(q), dtype=float).tobytes()
-    for known, load, at, torques in _GRAVITY:
+    for k, (known, load, at, torques) in enumerate(_GRAVITY):
         if known is robot and load == payload and at == key:
+            _GRAVITY.insert(0, _GRAVITY.pop(k))  # the most recently used first
             return torques.copy()
     torques = _gravity_torques(robot, q, payload)
     _GRAVITY.insert(0, (robot, payload, key, torques.copy()))
-    del _GRAVITY[_GRAVITY_KEPT:]
+    rows = np.cumsum([len(entry[3]) for entry in _GRAVITY])
+    del _GRAVITY[max(1, min(_GRAVITY_KEPT, int(np.searchsorted(rows, _GRAVITY_ROWS, side="right")))) :]
     return torques
 
 
@@ -71,10 +78,11 @@ def _gravity_torques(robot: Robot, q: np.ndarray, payload: Payload | None) -> np
         com = tip.placement.act(np.array(payload.com))
         model.inertias[tip.parentJoint] += pin.Inertia(payload.mass, com, np.zeros((3, 3)))
     data = model.createData()
-    out = np.empty_like(np.atleast_2d(q), dtype=float)
-    for i, qi in enumerate(np.atleast_2d(q)):
-        out[i] = pin.computeGeneralizedGravity(model, data, robot.configuration(qi))
-    return out
+    configurations = robot.configurations(np.atleast_2d(q))
+    out = np.empty((len(configurations), model.nv))
+    for i, config in enumerate(configurations):
+        out[i] = pin.computeGeneralizedGravity(model, data, config)
+    return out.reshape(np.shape(np.atleast_2d(q)))
 
 
 def massless(robot: Robot) -> bool:

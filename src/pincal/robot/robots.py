@@ -182,6 +182,22 @@ class Robot:
                 out[joint.idx_q] = q[k]
         return out
 
+    def configurations(self, q: np.ndarray) -> np.ndarray:
+        """:meth:`configuration` of each row of ``q`` (N, n) -> (N, nq), without a Python call per row.
+
+        Args:
+            q: joint values (N, n) [rad for revolute, m for prismatic].
+        """
+        q = np.asarray(q, dtype=float).reshape(-1, self.n_joints)
+        out = np.empty((len(q), self.model.nq))
+        for k, j in enumerate(self._joint_ids):
+            joint = self.model.joints[j]
+            if joint.nq == 2:  # continuous joint: (cos, sin)
+                out[:, joint.idx_q], out[:, joint.idx_q + 1] = np.cos(q[:, k]), np.sin(q[:, k])
+            else:
+                out[:, joint.idx_q] = q[:, k]
+        return out
+
     def frame_placement(self, q: np.ndarray) -> pin.SE3:
         """``base_T_tip`` by Pinocchio's forward kinematics (the reference for every model)."""
         data = self.model.createData()

@@ -96,15 +96,24 @@ def _tcp_scatter(tcp: np.ndarray, rotations: np.ndarray, positions: np.ndarray) 
     """Scatter (RMS from their mean) of the TCP points of the rows that turn, and its share of the
     flange positions' spread."""
     keep = [0]
+    turned = _turns(rotations[:-1], rotations[1:]) > _SAME_TURN  # each row from the row before it
     for i in range(1, len(rotations)):
-        turn = np.arccos(np.clip((np.trace(rotations[keep[-1]].T @ rotations[i]) - 1) / 2, -1.0, 1.0))
-        if turn > _SAME_TURN:
+        if keep[-1] == i - 1:  # the row before was kept: its turn is known
+            if turned[i - 1]:
+                keep.append(i)
+        elif _turns(rotations[keep[-1]], rotations[i]) > _SAME_TURN:
             keep.append(i)
     rot, pos = rotations[keep], positions[keep]
     points = rot @ tcp + pos
     scatter = float(np.sqrt(np.mean(np.sum((points - points.mean(axis=0)) ** 2, axis=1))))
     flange = float(np.sqrt(np.mean(np.sum((pos - pos.mean(axis=0)) ** 2, axis=1))))
     return (scatter / flange if flange > 0 else 0.0), scatter
+
+
+def _turns(first: np.ndarray, second: np.ndarray) -> np.ndarray:
+    """The angle [rad] between rotations ``first`` and ``second`` (..., 3, 3), row by row."""
+    trace = np.einsum("...ij,...ij->...", first, second)  # tr(firstᵀ second)
+    return np.arccos(np.clip((trace - 1) / 2, -1.0, 1.0))
 
 
 def _tool_readings(rotations: np.ndarray) -> Iterator[tuple[str, str, np.ndarray]]:

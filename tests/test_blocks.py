@@ -1,0 +1,199 @@
+"""A million rows by blocks: each path that sums over rows block by block gives what the
+computation on every row at once gives (within 1e-10 relative), on small problems cut into tiny
+blocks (:mod:`pincal.identify.chunked`'s sizes lowered), so that a block's offset, its folds or
+its rows' kinds taken wrong would show:
+
+- the linearised screen of candidate effects (:class:`pincal.auto.screening.Linearised`) against
+  its definition: each fold's least-squares step on the other folds' rows of ``[J E]``, its
+  held-out poses' position errors;
+- the standard deviations of a pose fit (:func:`pincal.identify.uncertainty.pose_std`) against
+  ``M Jᵀ D J M`` with each row's hat-matrix diagonal;
+- ``pincal tcp``'s leave-one-out distances and TCP standard deviation against a refit without
+  each pose and the ``(3n, 3n)`` matrix ``D Dᵀ``;
+- gravity torques from vectorised configurations against Pinocchio's call per pose, and the
+  torques kept by blocks are bounded by rows.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from scipy.spatial.transform import Rotation
+
+import pincal
+from pincal.auto.screening import Linearised
+from pincal.identify import chunked
+from pincal.identify.folds import pose_folds
+from pincal.identify.measurements import Problem
+from pincal.identify.uncertainty import pose_std
+from pincal.kinematics import gravity
+from pincal.kinematics.effects import Extension, combined
+from pincal.simulation.truth import hide_effect
+from pincal.tool.tcp import _differences, _leave_one_out, _tcp_std
+
+RTOL = 1e-10
+EFFECTS = (
+    "joint_compliance:shoulder_lift_joint",
+    "encoder_scale:wrist_2_joint",
+    "gear_harmonic2:elbow_joint",
+)
+
+
+def _tiny_blocks(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Problems above 10 poses work in blocks of 7 (poses split unevenly across blocks), and
+    none may ask for the Jacobian of all its poses at once."""
+    monkeypatch.setattr(chunked, "LARGE_POSES", 10)
+    monkeypatch.setattr(chunked, "BLOCK_POSES", 7)
+    whole = chunked.evaluate
+
+    def residuals_only(
+        problem: Problem, theta: np.ndarray, cols: np.ndarray | None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        assert cols is None, "the Jacobian of every pose at once"
+        return whole(problem, theta, cols)
+
+    monkeypatch.setattr(chunked, "evaluate", residuals_only)
+
+
+def _fitted(robot: pincal.Robot, rot_noise: float) -> tuple[pincal.Calibration, pincal.Dataset]:
+    truth, fit, _ = pincal.simulate(robot, n_fit=45, n_test=0, seed=3, rot_noise=rot_noise)
+    hidden = Extension.parse(robot, EFFECTS[0])
+    truth = hide_effect(truth, hidden, fit.q, 4e-4, seed=3)
+    fit = truth.measure(fit.q, 3e-5, 5e-4 if rot_noise else None, seed=5)
+    return pincal.calibrate(robot, fit), fit
+
+
+def _screen_by_rows(base: pincal.Calibration, data: pincal.Dataset, ext: Extension) -> tuple[float, float]:
+    """The linearised cross-validated RMS [mm] and all-row residual sum [m²], row by row."""
+    n_model = base.model.n_params
+    both = combined([ext])
+    theta = np.concatenate([base.theta[:n_model], np.zeros(ext.n_params), base.theta[n_model:]])
+    free = np.flatnonzero(base.identifiability.identifiable)
+    cols = np.concatenate(
+        [np.where(free < n_model, free, free + ext.n_params), n_model + np.arange(ext.n_params)]
+    )
+    problem = Problem(base.model, base.measurement, data, both)
+    res, jac = problem.rows(theta, cols)
+    width = base.measurement.measure.width
+    pose = np.arange(len(res)) // width
+
+    def step(rows: np.ndarray) -> np.ndarray:
+        return -np.linalg.lstsq(jac[rows], res[rows], rcond=None)[0]
+
+    errors = []
+    for held in pose_folds(data, 5, 0):
+        test = np.isin(pose, held)
+        predicted = (res + jac @ step(~test))[test].reshape(-1, width)[:, :3]
+        errors.append(np.sum(predicted**2, axis=1))
+    rss = float(np.sum((res + jac @ step(np.ones(len(res), bool))) ** 2))
+    return float(np.sqrt(np.mean(np.concatenate(errors)))) * 1e3, rss
+
+
+@pytest.mark.parametrize("rot_noise", [0.0, 5e-4])
+def test_linearised_screen_by_blocks_is_the_screen_by_rows(
+    get_robot: Callable[[str], pincal.Robot], monkeypatch: pytest.MonkeyPatch, rot_noise: float
+) -> None:
+    robot = get_robot("ur5")
+    base, data = _fitted(robot, rot_noise)
+    pool = [Extension.parse(robot, label) for label in EFFECTS]
+    whole = Linearised(base, data, 5, 0, pool)
+    by_rows = {ext.label: _screen_by_rows(base, data, ext) for ext in pool}
+    _tiny_blocks(monkeypatch)
+    blocked = Linearised(base, data, 5, 0, pool)
+    alone = Linearised(base, data, 5, 0)  # each effect's columns in a pass of its own
+    assert blocked.large and not whole.large
+    for ext in pool:
+        cv, rss = by_rows[ext.label]
+        for lin in (whole, blocked, alone):
+            screen = lin.screen(ext)
+            assert screen.cv_rms_mm == pytest.approx(cv, rel=RTOL)
+            assert screen.rss == pytest.approx(rss, rel=RTOL)
+        assert np.allclose(blocked.screen(ext).params, whole.screen(ext).params, rtol=RTOL, atol=0)
+    assert blocked.screen().cv_rms_mm == pytest.approx(whole.screen().cv_rms_mm, rel=RTOL)
+    assert np.array_equal(blocked.residuals, whole.residuals)
+
+
+def _pose_std_by_rows(
+    problem: Problem, scale: np.ndarray, weight: float, theta: np.ndarray, free: np.ndarray
+) -> np.ndarray:
+    """``M Jᵀ D J M`` with the hat matrix's diagonal row by row."""
+    jac, res = problem.jacobian(theta, free) * scale[free], problem.residuals(theta)
+    pen = np.arange(int(free.sum())) < int(free[: problem.model.n_params].sum())
+    inverse = np.linalg.pinv(jac.T @ jac + weight**2 * np.diag(pen.astype(float)))
+    left = 1.0 - np.einsum("ij,jk,ik->i", jac, inverse, jac)
+    turned = np.arange(len(res)) % 6 >= 3
+    variance = np.where(
+        turned,
+        res[turned] @ res[turned] / left[turned].sum(),
+        res[~turned] @ res[~turned] / left[~turned].sum(),
+    )
+    cov = inverse @ (jac.T @ (jac * variance[:, None])) @ inverse
+    out = np.zeros(problem.n_params)
+    out[free] = np.sqrt(np.diag(cov)) * scale[free]
+    return out
+
+
+def test_pose_std_by_blocks_is_the_std_by_rows(
+    get_robot: Callable[[str], pincal.Robot], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    base, data = _fitted(get_robot("ur5"), 5e-4)
+    free, theta = base.identifiability.identifiable, base.theta
+    scale = np.random.default_rng(0).uniform(0.5, 2.0, len(theta))
+    want = _pose_std_by_rows(base.problem(data), scale, 0.3, theta, free)
+    _tiny_blocks(monkeypatch)
+    problem = base.problem(data)
+    assert chunked.is_large(problem) and want[free].min() > 0
+    assert np.allclose(pose_std(problem, scale, 0.3, theta, free), want, rtol=RTOL, atol=0)
+
+
+def _flange_poses(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    rotations = Rotation.from_rotvec(rng.normal(scale=0.5, size=(n, 3))).as_matrix()
+    positions = np.array([0.5, 0.1, 0.2]) - rotations @ np.array([0.01, -0.02, 0.15])
+    positions += rng.normal(scale=1e-4, size=(n, 3))
+    positions[n // 2] += 3e-3  # one pose badly taught
+    return rotations, positions
+
+
+@pytest.mark.parametrize("n", [4, 6, 13])
+def test_tcp_leave_one_out_and_std_are_the_refits(n: int) -> None:
+    rotations, positions = _flange_poses(n, n)
+    tcp = np.linalg.lstsq(*_differences(rotations, positions), rcond=None)[0]
+    points = rotations @ tcp + positions
+    distances, scatters = np.empty(n), np.empty(n)
+    for i in range(n):  # the fit without pose i, as eq. 6-9 reads
+        keep = np.arange(n) != i
+        t = np.linalg.lstsq(*_differences(rotations[keep], positions[keep]), rcond=None)[0]
+        kept = rotations[keep] @ t + positions[keep]
+        distances[i] = np.linalg.norm(rotations[i] @ t + positions[i] - kept.mean(axis=0))
+        scatters[i] = np.sqrt(np.sum((kept - kept.mean(axis=0)) ** 2) / max(1, 3 * (n - 1) - 6))
+    found, suspects = _leave_one_out(rotations, positions, points)
+    assert np.allclose(found, distances, rtol=RTOL, atol=0)
+    assert np.array_equal(suspects, (distances > 6.0 * scatters) if n >= 5 else np.zeros(n, bool))
+    diff = np.eye(n - 1, n, 1) - np.eye(n - 1, n)
+    pinv = np.linalg.pinv(_differences(rotations, positions)[0])
+    scatter = points - points.mean(axis=0)
+    sigma2 = np.sum(scatter**2) / max(1, 3 * n - 6)
+    want = np.sqrt(np.diag(pinv @ np.kron(diff @ diff.T, np.eye(3)) @ pinv.T) * sigma2)
+    assert np.allclose(_tcp_std(rotations, positions, scatter), want, rtol=RTOL, atol=0)
+
+
+def test_gravity_by_vectorised_configurations(
+    get_robot: Callable[[str], pincal.Robot], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    robot = get_robot("ur5")
+    q = robot.random_configurations(30, np.random.default_rng(1))
+    data = robot.model.createData()
+    want = np.array([pin.computeGeneralizedGravity(robot.model, data, robot.configuration(x)) for x in q])
+    assert np.array_equal(robot.configurations(q), np.array([robot.configuration(x) for x in q]))
+    assert np.array_equal(gravity.gravity_torques(robot, q), want)
+    monkeypatch.setattr(gravity, "_GRAVITY", [])
+    monkeypatch.setattr(gravity, "_GRAVITY_ROWS", 25)
+    for k in range(3):  # three blocks of 10 rows: the oldest is let go
+        assert np.array_equal(
+            gravity.gravity_torques(robot, q[10 * k : 10 * k + 10]), want[10 * k : 10 * k + 10]
+        )
+    assert sum(len(entry[3]) for entry in gravity._GRAVITY) <= 25 and len(gravity._GRAVITY) == 2
