@@ -29,7 +29,7 @@ import pincal.identify.warm
 from pincal.auto.diagnose import diagnose
 from pincal.identify.registrations import REGISTRATIONS
 from pincal.identify.solver import register, set_up
-from pincal.identify.warm import WarmStart
+from pincal.identify.warm import WarmStart, fits_better
 from pincal.kinematics.effects import Extension
 from pincal.simulation.truth import hide_effect, hide_effects, random_truth
 
@@ -164,3 +164,16 @@ def test_the_registration_is_solved_once_per_content(
     solved = len(steps)
     register(set_up(ur5, moved, "placements"))
     assert len(steps) > solved, "other poses: solved again"
+
+
+def test_a_start_worse_than_nominal_is_not_taken(ur5: pincal.Robot) -> None:
+    """A fit whose registration turned far (poses that determine it poorly) is no start: the
+    fit begins at the nominal model, where a start that fits better is taken."""
+    _, fit, _ = pincal.simulate(ur5, n_fit=20, n_test=1, seed=2)
+    setup = set_up(ur5, fit, "placements")
+    problem, nominal = setup.problem, register(setup)
+    turned = nominal.copy()
+    turned[problem.n_model + 3 : problem.n_model + 6] += (0.0, 2.3, -0.1)  # the registration's rotation
+    assert not fits_better(problem, turned, nominal)
+    solved = pincal.calibrate(ur5, fit, "placements")
+    assert fits_better(problem, solved.theta, nominal)

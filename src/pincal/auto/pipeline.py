@@ -25,7 +25,7 @@ from pincal.identify.guard import DEFAULT_PULL, Protected, Pull, protect
 from pincal.identify.identifiability import RCOND, Identifiability
 from pincal.identify.kfold import cross_validate_with
 from pincal.identify.solver import Setup, assess, identifiable_set, register, screen_outliers, set_up, solve
-from pincal.identify.warm import WarmStart
+from pincal.identify.warm import WarmStart, fits_better
 from pincal.kinematics.effects import AnyEffect, Effects, Extension
 from pincal.kinematics.models import Model
 from pincal.plausibility.judge import judge_calibration
@@ -54,9 +54,16 @@ def fit(
     nominal = register(setup) if nominal is None else nominal  # its first guess is as good a start
     known = every if params is None else None
     ident = identifiable_set(setup, nominal, params, partial, rcond) if known is None else known
-    first = nominal if start is None else start.fit(setup.problem, nominal, ident.identifiable)
+    first = nominal if start is None else _warm(setup, start, nominal, ident.identifiable)
     base, _ = solve(setup, first, ident.identifiable, loss, f_scale)  # at the default pull
     return replace(protect(setup, nominal, ident, base, pull, loss, f_scale), base=base)
+
+
+def _warm(setup: Setup, start: WarmStart, nominal: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """Where a fit of the unknowns ``free`` begins: at ``start``, or at the registration-only θ
+    ``nominal`` when that fits the poses better."""
+    warm = start.fit(setup.problem, nominal, free)
+    return warm if fits_better(setup.problem, warm, nominal) else nominal
 
 
 def _kept_pairs(pairs: str | np.ndarray, n: int, keep: np.ndarray) -> str | np.ndarray:

@@ -62,7 +62,7 @@ class WarmStart:
         if self._same_measurement(problem):
             rest = slice(problem.n_model, None)
             warm[rest] = np.where(free[rest], self._measured(problem, self.theta), nominal[rest])
-        return warm if _closer(problem, warm, nominal) else nominal
+        return warm
 
     def _same_measurement(self, problem: Problem) -> bool:
         """Whether ``problem``'s registration, points and tool are this start's unknowns."""
@@ -83,8 +83,8 @@ class WarmStart:
         return out
 
 
-def _closer(problem: Problem, warm: np.ndarray, nominal: np.ndarray) -> bool:
+def fits_better(problem: Problem, warm: np.ndarray, nominal: np.ndarray) -> bool:
     """Whether the start ``warm`` fits ``problem``'s poses better than ``nominal`` (a fit of
-    poses that determine little, its registration turned far, may not: it then starts cold)."""
+    poses that determine little, its registration turned far, may not: then start cold)."""
     at_warm, at_nominal = problem.residuals(warm), problem.residuals(nominal)
     return bool(np.isfinite(at_warm).all() and at_warm @ at_warm < at_nominal @ at_nominal)
