@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -13,6 +14,7 @@ import pinocchio as pin
 import pytest
 
 import pincal
+import pincal.auto.choice as choice_module
 import pincal.report.outcome
 import pincal.simulation.truth
 from pincal.data.directions import move_directions
@@ -196,3 +198,30 @@ def test_rows_in_no_meaningful_order_show_no_lost_motion(get_robot) -> None:
     cal = pincal.calibrate(robot, shuffled, extension="auto")
     named = [] if cal.extension is None else [e.effect for e in cal.extension.parts]
     assert "lost_motion" not in named
+
+
+def test_no_diagnosis_runs_twice_on_the_same_parameters(get_robot, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A round whose re-selected parameters are those of an earlier round repeats its diagnosis
+    (the same poses, parameters and options): it is taken, not run again, and reported alike."""
+    robot = get_robot("ur5")
+    truth, fit, _ = pincal.simulate(robot, n_fit=100, n_test=1, seed=0)
+    parts = [
+        Extension.parse(robot, t) for t in ("lost_motion:shoulder_lift_joint", "gear_harmonic:elbow_joint")
+    ]
+    data = pincal.simulation.truth.hide_effects(truth, parts, fit.q, 0.4e-3, 0).measure(
+        fit.q, noise=3e-5, seed=1
+    )
+    runs: list[tuple[object, object]] = []
+    original = choice_module._diagnosis
+
+    def counted(*args: object, **further: object) -> object:
+        held = further.get("given")
+        runs.append((args[4], getattr(held, "label", None)))
+        return original(*args, **further)
+
+    monkeypatch.setattr(choice_module, "_diagnosis", counted)
+    cal = pincal.calibrate(robot, data, params="auto", extension="auto")
+    assert cal.choice is not None and len(cal.choice.rounds) == 2
+    assert cal.choice.rounds[0].params == cal.choice.rounds[1].params  # the repeated round
+    assert cal.choice.rounds[0] == replace(cal.choice.rounds[1], with_cause=None)
+    assert len(runs) == len(set(runs)), runs

@@ -245,13 +245,15 @@ def choose(
     rounds: list[Round] = []
     kept: tuple[float, ModelChoice] | None = None
     cause: AnyEffect | None = None
+    done: dict[Params, Diagnosis] = {}  # a round on the parameters of an earlier one repeats it
     for _ in range(MAX_ROUNDS):
         try:
-            diag = _diagnosis(setup, fit, options, progress, params)
+            diag = done[params] if params in done else _diagnosis(setup, fit, options, progress, params)
         except IdentifiabilityError as exc:  # a fold too small to fit: the geometry alone, said so
             if rounds:
                 break
             return replace(base, skipped=f"too few poses for the diagnosis' {folds} folds ({exc})")
+        done[params] = diag
         named = diag.cause.extension if diag.cause else None
         label = named.label if named else None
         with_cause = cause.label if cause else None
