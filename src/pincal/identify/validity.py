@@ -85,9 +85,9 @@ def joint_ranges(robot: Robot, q: np.ndarray) -> tuple[JointRange, ...]:
 class Extrapolation:
     """The fit's expected gain over the nominal model across the joint limits and on its own poses.
 
-    The expected gain at a configuration ``q`` is ``|Δ̂(q)|² - 2 (v_fit(q) - v_nominal(q))``:
-    ``Δ̂`` the difference of the two models' predicted tip positions, ``v`` each model's
-    prediction variance from its posterior covariance (:mod:`pincal.identify.extrapolation`).
+    The expected gain at a configuration ``q`` is ``|m(q) - n(q)|² - |m(q) - f(q)|²``: ``n``,
+    ``f`` and ``m`` the tip positions the nominal model, the fit and the posterior mean of every
+    correction predict (:mod:`pincal.identify.extrapolation`).
 
     Attributes:
         whole_gain_mm2: mean expected gain over configurations drawn across the joint limits [mm²].
@@ -125,9 +125,9 @@ class Extrapolation:
             "samples": self.samples,
             "posterior_weight": self.weight,
             "holds": self.holds,
-            "by": "mean over configurations drawn across the joint limits of |d|^2 - 2 (v_fit - v_nominal): "
-            "d the two models' difference in predicted tip position, v each model's prediction variance "
-            "from its posterior covariance",
+            "by": "mean over configurations drawn across the joint limits of |m - n|^2 - |m - f|^2: n, f "
+            "and m the tip positions the nominal model, the fit and the posterior mean of every correction "
+            "(pulled with posterior_weight) predict",
         }
 
 
