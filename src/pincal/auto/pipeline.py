@@ -56,7 +56,7 @@ def fit(
     ident = identifiable_set(setup, nominal, params, partial, rcond) if known is None else known
     first = nominal if start is None else _warm(setup, start, nominal, ident.identifiable)
     base, _ = solve(setup, first, ident.identifiable, loss, f_scale)  # at the default pull
-    return replace(protect(setup, nominal, ident, base, pull, loss, f_scale), base=base)
+    return protect(setup, nominal, ident, base, pull, loss, f_scale)
 
 
 def _warm(setup: Setup, start: WarmStart, nominal: np.ndarray, free: np.ndarray) -> np.ndarray:

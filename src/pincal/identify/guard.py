@@ -178,7 +178,7 @@ class Protected:
             (:data:`pincal.identify.solver.PRIOR_WEIGHT`) when the weight is chosen, as its choice is made
             for Gaussian residuals and gross outliers would inflate it; else the fit.
         base: the fit at the default pull, from which the fit at the chosen weight was solved
-            (set by :func:`pincal.auto.pipeline.fit`; None: not recorded).
+            (None: not recorded).
     """
 
     setup: Setup
@@ -230,9 +230,8 @@ def protect(
     region = joint_ranges(setup.model.robot, setup.data.q)
     verdict = replace(judge(chosen, theta, nominal, free, pull.force_fit, pull.selected), region=region)
     if verdict.reliable:  # validated on its poses: is it expected to hold beyond them?
-        beyond = check(chosen, theta, nominal, free)
-        holds = beyond is None or beyond.holds
-        verdict = replace(verdict, extrapolation=beyond, kept_fit=holds or pull.force_fit)
+        verdict = replace(verdict, extrapolation=check(chosen, theta, nominal, free))
+        verdict = replace(verdict, kept_fit=verdict.holds or pull.force_fit)
     kept = theta if verdict.kept_fit else nominal
     screening = (setup, base) if choice.chosen_by == "evidence" else (chosen, theta)
-    return Protected(chosen, kept, nominal, ident, result, choice, verdict, screening)
+    return Protected(chosen, kept, nominal, ident, result, choice, verdict, screening, base)
