@@ -170,7 +170,7 @@ def test_tcp_leave_one_out_and_std_are_the_refits(n: int) -> None:
         kept = rotations[keep] @ t + positions[keep]
         distances[i] = np.linalg.norm(rotations[i] @ t + positions[i] - kept.mean(axis=0))
         scatters[i] = np.sqrt(np.sum((kept - kept.mean(axis=0)) ** 2) / max(1, 3 * (n - 1) - 6))
-    found, suspects = _leave_one_out(rotations, positions, points)
+    found, suspects = _leave_one_out(rotations, positions, tcp)
     assert np.allclose(found, distances, rtol=RTOL, atol=0)
     assert np.array_equal(suspects, (distances > 6.0 * scatters) if n >= 5 else np.zeros(n, bool))
     diff = np.eye(n - 1, n, 1) - np.eye(n - 1, n)

@@ -172,15 +172,7 @@ class Robot:
         Args:
             q: joint values (n,) [rad for revolute, m for prismatic].
         """
-        q = np.asarray(q, dtype=float).reshape(self.n_joints)
-        out = np.empty(self.model.nq)
-        for k, j in enumerate(self._joint_ids):
-            joint = self.model.joints[j]
-            if joint.nq == 2:  # continuous joint: (cos, sin)
-                out[joint.idx_q : joint.idx_q + 2] = (math.cos(q[k]), math.sin(q[k]))
-            else:
-                out[joint.idx_q] = q[k]
-        return out
+        return self.configurations(np.asarray(q, dtype=float).reshape(1, self.n_joints))[0]
 
     def configurations(self, q: np.ndarray) -> np.ndarray:
         """:meth:`configuration` of each row of ``q`` (N, n) -> (N, nq), without a Python call per row.
