@@ -235,11 +235,14 @@ def _command_row(
 def _in_play(cal: CalibratedRobot, rows: np.ndarray) -> str:
     """Why a refused row of commands (the last of ``rows``) may need a move lost motion forbids: the
     joints with lost motion the program holds still (on their flank: no reversal under ``2|v|``)."""
-    names, slide = cal.robot.joint_names, cal.robot.prismatic
+    if len(rows) < 2:  # the first row: it comes from no row
+        return ""
+    names, slide, moved = cal.robot.joint_names, cal.robot.prismatic, np.abs(rows[1] - rows[0])
+    lost = {names.index(j): (j, v) for j, v in cal.lost_motion().items()}
     held = [
-        f"{j} ({2e3 * abs(v):.3f} {'mm' if slide[names.index(j)] else 'mrad'})"
-        for j, v in cal.lost_motion().items()
-        if len(rows) == 2 and abs(rows[1, names.index(j)] - rows[0, names.index(j)]) <= STILL
+        f"{j} ({2e3 * abs(v):.3f} {'mm' if slide[k] else 'mrad'})"
+        for k, (j, v) in lost.items()
+        if moved[k] <= STILL
     ]
     if not held:
         return ""
