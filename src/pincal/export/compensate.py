@@ -29,11 +29,11 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from pincal.data.directions import STILL
 from pincal.data.program import Targets
 from pincal.errors import DataError
 from pincal.export.calibrated_robot import CalibratedRobot
-from pincal.export.inverse_kinematics import Approach, Found, Settings, search, solve, tool_errors
+from pincal.export.inverse_kinematics import Approach, Settings, search, solve, tool_errors
+from pincal.export.refusals import beyond, in_play, unreached
 from pincal.files import atomic_write
 from pincal.robot.robots import Robot
 
@@ -183,11 +183,11 @@ def compensate_program(
             best = search(calibrated, targets[i], tries, before, opts)
             out[i], start[i], iters[i] = best.q, best.start, best.iterations
             if not best.converged:
-                status[i], messages[i] = _unreached(robot, best, opts.task, None)
+                status[i], messages[i] = unreached(robot, best, opts.task, None)
         else:
             row = _command_row(calibrated, targets[i], q_in[i], before, opts, (singular_rcond, max_change))
             out[i], iters[i], status[i], messages[i] = row
-            messages[i] += _in_play(calibrated, q_in[max(i - 1, 0) : i + 1]) if row[2] != "ok" else ""
+            messages[i] += in_play(calibrated, q_in[max(i - 1, 0) : i + 1]) if row[2] != "ok" else ""
         before = before.then(out[i])
     pos_e, rot_e = tool_errors(calibrated, targets, out)
     if cartesian and getattr(program, "rotations", None) is None:
@@ -214,7 +214,7 @@ def _command_row(
         opts: the search's settings.
         limits: ``(singular_rcond, max_change)`` of :func:`compensate_program`.
     """
-    outside = _beyond(cal.robot, q0, strict=True)
+    outside = beyond(cal.robot, q0, strict=True)
     if outside:
         return q0, 0, "unreachable", f"the commands are beyond the limits of {outside}"
     prev = before.previous  # also tried from there: a row the program repeats, reached again
@@ -222,7 +222,7 @@ def _command_row(
     best = search(cal, target, tries, before, opts)
     if best.converged and float(np.abs(best.q - q0).max()) <= limits[1]:
         return best.q, best.iterations, "ok", ""
-    status, message = _unreached(cal.robot, best, opts.task, limits)
+    status, message = unreached(cal.robot, best, opts.task, limits)
     if opts.task == "pose":  # what the position task would do instead
         point = solve(cal, target, q0, before, replace(opts, task="position"))
         if point.converged and float(np.abs(point.q - q0).max()) <= limits[1]:
@@ -230,26 +230,6 @@ def _command_row(
                 f" (the position task reaches the point, the orientation {point.rotation * 1e3:.3f} mrad off)"
             )
     return q0, best.iterations, status, message
-
-
-def _in_play(cal: CalibratedRobot, rows: np.ndarray) -> str:
-    """Why a refused row of commands (the last of ``rows``) may need a move lost motion forbids: the
-    joints with lost motion the program holds still (on their flank: no reversal under ``2|v|``)."""
-    if len(rows) < 2:  # the first row: it comes from no row
-        return ""
-    names, slide, moved = cal.robot.joint_names, cal.robot.prismatic, np.abs(rows[1] - rows[0])
-    lost = {names.index(j): (j, v) for j, v in cal.lost_motion().items()}
-    held = [
-        f"{j} ({2e3 * abs(v):.3f} {'mm' if slide[k] else 'mrad'})"
-        for k, (j, v) in lost.items()
-        if moved[k] <= STILL
-    ]
-    if not held:
-        return ""
-    return (
-        f"; the program holds {', '.join(held)} still: a reversal smaller than its lost motion (in "
-        "brackets) cannot be made: move the joint in the program"
-    )
 
 
 def _program_commands(
@@ -292,47 +272,6 @@ def _choose_task(program: np.ndarray | Targets, task: str | None) -> str:
             "the position task"
         )
     return task
-
-
-def _unreached(robot: Robot, found: Found, task: str, limits: tuple[float, float] | None) -> tuple[str, str]:
-    """Status and message of a row not compensated.
-
-    A row of commands is ``singular`` when its correction needs more than ``max_change`` (found,
-    or foreseen by the first Gauss-Newton step) or its Jacobian's σmin/σmax is under
-    ``singular_rcond``; else ``unreachable`` (beyond the calibrated arm's reach or a joint limit).
-
-    Args:
-        robot: the calibrated chain.
-        found: the closest search.
-        task: ``pose`` or ``position``.
-        limits: for a row of commands, ``(singular_rcond, max_change)``; None for a Cartesian row.
-    """
-    change = float(np.abs(found.q - found.start).max())
-    if found.converged:
-        return "singular", f"near a singularity: needs a joint change of {change:.3f} rad"
-    off = f"{found.position * 1e3:.3f} mm" + (f", {found.rotation * 1e3:.3f} mrad" if task == "pose" else "")
-    closest = f"the closest pose found is {off} off"
-    at_limit = _beyond(robot, found.q, strict=False)
-    if limits is not None and not at_limit:
-        singular_rcond, max_change = limits
-        near = f"near a singularity (σmin/σmax {found.ratio:.1e})"
-        if found.first_step > max_change:
-            needs = f"the correction needs a joint change of about {found.first_step:.2f} rad"
-            return "singular", f"{near}: {needs}; {closest}"
-        if found.ratio < singular_rcond:
-            return "singular", f"{near}: {closest}"
-    why = f"; {at_limit} at a joint limit" if at_limit else ""
-    return "unreachable", f"out of reach: {closest}{why}"
-
-
-def _beyond(robot: Robot, q: np.ndarray, strict: bool) -> str:
-    """Joints beyond their limits (``strict``) or at them, comma separated."""
-    out = [
-        j
-        for j, v, a, b in zip(robot.joint_names, q, robot.lower, robot.upper)
-        if (v < a or v > b) or (not strict and (v <= a or v >= b))
-    ]
-    return ", ".join(out)
 
 
 def write_program(
