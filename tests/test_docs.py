@@ -134,7 +134,7 @@ QUOTED_PAGES = {
 FIGURE = re.compile(r"(?<![\w.])[-−]?\d+\.\d+(?:[eE][-+]?\d+)?(?![\w.]*[/\\])")
 #: Words of the project's own development, which a user's page has no use for.
 DEVELOPMENT = re.compile(
-    r"\bissues? #?\d+|\bbeing added\b|\bwork in progress\b|\bTODO\b|\bFIXME\b|\bnot yet in every build\b",
+    r"\bissues?\s+#?\d+|\bbeing added\b|\bwork in progress\b|\bTODO\b|\bFIXME\b|\bnot yet in every build\b",
     re.IGNORECASE,
 )
 #: A path in the repository, as pages cite them.
