@@ -4,8 +4,8 @@
   scored by linearised leave-one-out cross-validation: every identifiable parameter when fitting
   them all scores within 5 % of the path's lowest, else the shortest prefix within 1 % of it.
 - **Cause** (``extension="auto"``): :func:`pincal.auto.diagnose.diagnose` on the chosen geometry,
-  its own test deciding (lowest K-fold cross-validated RMS, a gain of at least 1.1 and an F-test
-  with Bonferroni's correction). A named cause changes which geometric parameters pay, so the
+  its own test deciding (lowest K-fold cross-validated RMS, a gain of at least 1.1 and a
+  family-wise p-value under the null of the whole screen). A named cause changes which geometric parameters pay, so the
   parameters are chosen again with the cause fitted at every step and the diagnosis re-run on
   them, until it names the cause it named before (at most :data:`MAX_ROUNDS` rounds). Of the
   rounds that named a cause, the one whose extended model has the lowest cross-validated RMS is
@@ -309,7 +309,7 @@ def _more_causes(
 ) -> ModelChoice:
     """``choice`` with the further causes that pay, each sought by a diagnosis whose baseline
     holds the causes named before it (on the parameters chosen with the first), at most
-    :data:`MAX_CAUSES` in all, and each counted in the F-test's correction."""
+    :data:`MAX_CAUSES` in all, and the k-th tested at level ``ALPHA / k``."""
     assert choice.extension is not None and choice.diagnosis is not None
     effects, steps, previous = choice.extension, [], choice.diagnosis
     for step in range(2, MAX_CAUSES + 1):

@@ -7,11 +7,10 @@
    :data:`FINALISTS` best by the nonlinear calibration and cross-validation.
 3. Selection: the finalist with the lowest cross-validated RMS wins only if
    (a) it beats the baseline's cross-validated RMS by :data:`MIN_GAIN`, and
-   (b) its fit on all poses passes an F-test against the baseline, ``p < α / (number of
-   candidates)`` (Bonferroni, α = 0.01). Otherwise the answer is ``none``: a false cause is
-   worse than no cause.
-For distance data the F-test counts ``3 N - 6`` independent equations for ``N`` poses, since
-the distances of all pairs carry no more information than the points themselves.
+   (b) its linearised gain is one pure noise rarely reaches as the best of every candidate:
+   its family-wise p-value under the null of the whole screen (:mod:`pincal.auto.screen_null`)
+   is under ``α / step`` (α = 0.01, ``step`` the causes sought so far). Otherwise the answer is
+   ``none``: a false cause is worse than no cause.
 
 The fit is given (:func:`diagnose_with`): :func:`pincal.auto.diagnose.diagnose` fits with
 :func:`pincal.calibrate`, and the pipeline's ``extension="auto"``, above this module, with its own.
@@ -25,8 +24,8 @@ from typing import Any
 
 import numpy as np
 
-from pincal.auto.f_tests import f_screened, f_test
-from pincal.auto.screening import Linearised
+from pincal.auto.screen_null import ALPHA, ScreenNull, draws_for, screen_null
+from pincal.auto.screening import Linearised, Screen
 from pincal.data.dataset import Dataset
 from pincal.identify.calibration import Calibration
 from pincal.identify.kfold import Fit, cross_validate_with
@@ -39,8 +38,6 @@ from pincal.threads import limited
 
 #: The winner must beat the baseline's cross-validated RMS by at least this factor.
 MIN_GAIN = 1.1
-#: Family-wise significance level of the F-tests.
-ALPHA = 0.01
 #: Candidates judged by the nonlinear cross-validation after the linearised screen.
 FINALISTS = 3
 #: ``quick`` diagnoses (``calibrate --extend auto``) judge by the nonlinear cross-validation only
@@ -58,7 +55,8 @@ class Candidate:
     Attributes:
         extension: the effect.
         cv_rms_mm: cross-validated RMS [mm] (linearised for a candidate only screened).
-        p_value: F-test of the extended fit on all poses against the baseline.
+        p_value: family-wise p-value of its linearised gain under the null of the whole screen
+            (:mod:`pincal.auto.screen_null`; 1 when no null could be drawn).
         calibration: the extended fit on all poses (None for a candidate only screened).
         q: the data's commanded configurations (N, n), to read a compliance as a stiffness.
         screened_params: the effect's parameters of the linearised fit, when only screened.
@@ -130,6 +128,8 @@ class Diagnosis:
         rejected: candidates that paid on held-out poses but whose identified value is
             implausible for the effect named (:func:`pincal.kinematics.stiffness.implausible`), best first.
         given: the effects the baseline already held (a cause sought after others), or None.
+        step: the causes sought so far, this one included (the test's level is ``ALPHA / step``).
+        null_draws: draws of noise through the screen (0: none drawn).
     """
 
     baseline: Calibration = field(repr=False)
@@ -140,6 +140,8 @@ class Diagnosis:
     q: np.ndarray | None = field(default=None, repr=False, compare=False)
     rejected: tuple[Candidate, ...] = ()
     given: AnyEffect | None = field(default=None, repr=False)
+    step: int = 1
+    null_draws: int = 0
 
     @property
     def extended(self) -> Calibration:
@@ -231,8 +233,9 @@ class Diagnosis:
             "gain": self.gain,
             "summary": self.summary(),
             "folds": self.folds,
-            "selection": f"lowest cross-validated RMS, if gain >= {MIN_GAIN} and F-test p < {ALPHA} / "
-            f"{len(self.candidates)} (Bonferroni)",
+            "selection": f"lowest cross-validated RMS, if gain >= {MIN_GAIN} and its family-wise p < {ALPHA} "
+            f"/ {self.step} under the null of the screen of {len(self.candidates)} candidates"
+            f" ({self.null_draws} draws of noise)",
             "candidates": [c.to_dict() for c in self.candidates],
             "rejected": [
                 {"effect": c.extension.effect, "joint": c.extension.joint, "why": c.implausible}
@@ -272,8 +275,8 @@ def diagnose_with(
 ) -> Diagnosis:
     """:func:`pincal.auto.diagnose.diagnose` (its arguments and answer) with the calibration ``fit``,
     called as ``fit(robot, data, model, measure, **options)``; with ``given``, the baseline holds
-    those effects and each candidate is added to them (the ``step``-th cause sought: the F-test's
-    correction counts the candidates of every step); ``baseline``: the baseline's fit and
+    those effects and each candidate is added to them (the ``step``-th cause sought: tested at
+    level ``ALPHA / step``); ``baseline``: the baseline's fit and
     cross-validated RMS when already known (:func:`known_baseline`), not fitted again."""
     options = {k: v for k, v in options.items() if k != "extension"}
     options["deliver"] = "none"  # a cause is named by the joint fit of geometry and effect
@@ -298,12 +301,14 @@ def diagnose_with(
         if progress is not None:
             progress(k + 1, total, ext.label)
     screens.sort(key=lambda item: item[1].cv_rms_mm)
+    null = screen_null(lin, [ext for ext, _ in screens], draws_for(step), seed)
+    p_of = _p_values(lin, null)
     options["partial"] = True
     finalists: list[Candidate] = []
     n_final = min(FINALISTS, len(screens))
     if quick:
         n_final = sum(base_rms / s.cv_rms_mm >= QUICK_GAIN for _, s in screens[:n_final])
-    for k, (ext, _) in enumerate(screens[:n_final]):
+    for k, (ext, screen) in enumerate(screens[:n_final]):
         both = combined([*held, ext])
         full = fit(robot, data, model, measure, extension=both, **options)
         if progress is not None:
@@ -314,15 +319,23 @@ def diagnose_with(
             continue
         warm = {**options, "start": WarmStart.of(full)}  # its folds begin at its fit on all poses
         cv = cross_validate_with(fit, robot, data, model, measure, folds, seed, extension=both, **warm)
-        finalists.append(Candidate(ext, cv.after.rms_mm, f_test(base, full, data), full, data.q))
+        finalists.append(Candidate(ext, cv.after.rms_mm, p_of(screen), full, data.q))
     finalists.sort(key=lambda c: c.cv_rms_mm)
-    screened = [
-        Candidate(ext, s.cv_rms_mm, f_screened(base, lin, s, ext.n_params), None, data.q, s.params)
-        for ext, s in screens[n_final:]
-    ]
-    judged = finalists + screened
-    family = len(judged) * step
-    paying = [c for c in finalists if base_rms / c.cv_rms_mm >= MIN_GAIN and c.p_value < ALPHA / family]
+    screened = [Candidate(ext, s.cv_rms_mm, p_of(s), None, data.q, s.params) for ext, s in screens[n_final:]]
+    paying = [c for c in finalists if base_rms / c.cv_rms_mm >= MIN_GAIN and c.p_value < ALPHA / step]
     rejected = tuple(c for c in paying if c.implausible is not None)
     cause = next((c for c in paying if c.implausible is None), None)
-    return Diagnosis(base, base_rms, cause, tuple(judged), folds, data.q, rejected, given)
+    draws = 0 if null is None else null.draws
+    judged = tuple(finalists + screened)
+    return Diagnosis(base, base_rms, cause, judged, folds, data.q, rejected, given, step, draws)
+
+
+def _p_values(lin: Linearised, null: ScreenNull | None) -> Callable[[Screen], float]:
+    """A screened candidate's family-wise p-value: of its linearised gain over the baseline's
+    linearised cross-validated RMS, under ``null`` (1 without a null)."""
+    base = lin.screen().cv_rms_mm
+
+    def p_value(screen: Screen) -> float:
+        return 1.0 if null is None else null.p_value(base / screen.cv_rms_mm)
+
+    return p_value

@@ -17,7 +17,8 @@ of the groups it trains on, and its held-out errors' sum of squares the quadrati
 :func:`pincal.auto.diagnose.diagnose` ranks the candidates by this linearised cross-validated RMS and
 runs the nonlinear calibration and cross-validation only for the few best. The folds, the
 held-out errors (a pose's 3-D position error; for distance data every pair with a held-out pose)
-and the F-test's residual sums are those of the nonlinear path.
+are those of the nonlinear path; :mod:`pincal.auto.screen_null` draws noise through the same
+rows.
 """
 
 from __future__ import annotations
@@ -51,6 +52,30 @@ class Screen:
     rss: float
     params: np.ndarray
     identifiable: bool
+
+
+@dataclass(frozen=True, eq=False)
+class Design:
+    """The rows of a small linearised problem, kept for draws of noise through the same screen
+    (:mod:`pincal.auto.screen_null`).
+
+    Attributes:
+        problem: the problem the rows are of (its data and pairs).
+        jac: (R, c) the columns ``[J E]`` (the geometry's, then every candidate's).
+        groups: (R,) each row's group: the bit mask of the folds that hold it out.
+        counted: (R,) whether a held-out error counts the row (a pose's position rows).
+        n_folds: the number of folds.
+    """
+
+    problem: Problem
+    jac: np.ndarray
+    groups: np.ndarray
+    counted: np.ndarray
+    n_folds: int
+
+    def held(self, fold: int) -> np.ndarray:
+        """(R,) the rows fold ``fold`` holds out."""
+        return (self.groups >> fold & 1).astype(bool)
 
 
 class GroupSums:
@@ -109,7 +134,8 @@ class Linearised:
         for k, rows in enumerate(held):
             self.bits[rows] |= 1 << k
         self.large = chunked.is_large(base.problem(data))
-        self.sums, self.columns, self.residuals = self._pass(list(pool or []))
+        self.design: Design | None = None  # the rows themselves, kept when the data is small
+        self.sums, self.columns, self.residuals = self._pass(list(pool or []), keep=True)
         diag = np.diag(self.sums.gram())[: len(self.free)]
         self.norms = np.where(diag > 0, np.sqrt(diag), 1.0)
 
@@ -120,10 +146,12 @@ class Linearised:
         n, size = len(self.data), chunked.BLOCK_POSES
         return [(self.data.subset(np.arange(a, min(a + size, n))), a) for a in range(0, n, size)]
 
-    def _pass(self, pool: Sequence[AnyEffect]) -> tuple[GroupSums, dict[str, np.ndarray], np.ndarray]:
+    def _pass(
+        self, pool: Sequence[AnyEffect], keep: bool = False
+    ) -> tuple[GroupSums, dict[str, np.ndarray], np.ndarray]:
         """One pass over the poses: the sums of ``[J E r]`` with the columns ``E`` of every effect
         of ``pool`` (after the effects the base fit holds), each effect's columns in ``E``, and
-        the residuals."""
+        the residuals; with ``keep``, a small problem's rows in :attr:`design`."""
         base = self.base
         n_model = base.model.n_params + (base.extension.n_params if base.extension is not None else 0)
         held = base.extension.parts if base.extension is not None else ()
@@ -142,8 +170,11 @@ class Linearised:
             res, jac = problem.rows(theta, cols)
             owners = self.kind.owners(problem)
             groups = np.bitwise_or.reduce(self.bits[np.where(owners >= 0, owners + first, -1)], axis=1)
-            sums.add(np.column_stack([jac, res]), groups, np.arange(len(res)) % width < 3)
+            counted = np.arange(len(res)) % width < 3
+            sums.add(np.column_stack([jac, res]), groups, counted)
             residuals.append(res)
+            if keep and not self.large:
+                self.design = Design(problem, jac, groups, counted, self.n_folds)
         return sums, columns, np.concatenate(residuals)
 
     def _sums_of(self, extension: AnyEffect | None) -> tuple[GroupSums, np.ndarray]:

@@ -73,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
         f"baseline {args.model}: cross-validated RMS {result.baseline_cv_rms_mm:.4f} mm ({args.folds} folds)"
     )
     for cand in result.candidates[:5]:
-        print(f"  {cand.extension.label:42s} CV RMS {cand.cv_rms_mm:.4f} mm  F-test p = {cand.p_value:.2g}")
+        print(f"  {cand.extension.label:42s} CV RMS {cand.cv_rms_mm:.4f} mm  p = {cand.p_value:.2g}")
     print(as_flags(result.summary()))
     for step in choice.more:  # each further cause, sought with the ones before it held
         assert step.cause is not None
