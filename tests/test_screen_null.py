@@ -77,3 +77,21 @@ def test_a_hidden_effect_gets_the_smallest_p_value(get_robot: Callable[[str], pi
     assert d.cause is not None and d.cause.extension.label == label
     assert d.cause.p_value == pytest.approx(1 / 200) and d.cause.p_value < ALPHA
     assert d.null_draws == 199 and "under the null of the screen" in d.to_dict()["selection"]
+
+
+def test_a_large_problem_draws_its_null_on_a_subset(
+    get_robot: Callable[[str], pincal.Robot], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import pincal.auto.screen_null as screen_null_module
+    from pincal.identify import chunked
+
+    lin, pool = _linearised(get_robot("ur5"), "position")
+    monkeypatch.setattr(chunked, "LARGE_POSES", 20)  # the 30 poses are a large problem
+    monkeypatch.setattr(chunked, "BLOCK_POSES", 10)
+    monkeypatch.setattr(screen_null_module, "NULL_MAX_POSES", 20)
+    large = Linearised(lin.base, lin.data, 5, 0, pool)
+    assert large.large and large.design is None
+    null = screen_null(large, pool, 99, seed=0)
+    assert null is not None and null.draws == 99 and np.all(null.gains > 0)
+    whole = screen_null(lin, pool, 99, seed=0)
+    assert whole is not None and not np.array_equal(whole.gains, null.gains)

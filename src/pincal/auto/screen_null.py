@@ -39,7 +39,7 @@ ALPHA = 0.01
 #: Draws per ``step / ALPHA``: twice as many as the smallest p-value the level needs.
 DRAWS_PER_LEVEL = 2
 #: Above this many poses the null is drawn on a random subset of this many.
-NULL_MAX_POSES = 2000
+NULL_MAX_POSES = 1000
 
 
 @dataclass(frozen=True)
