@@ -5,12 +5,13 @@
   them all scores within 5 % of the path's lowest, else the shortest prefix within 1 % of it.
 - **Cause** (``extension="auto"``): :func:`pincal.auto.diagnose.diagnose` on the chosen geometry,
   its own test deciding (lowest K-fold cross-validated RMS, a gain of at least 1.1 and a
-  family-wise p-value under the null of the whole screen). A named cause changes which geometric parameters pay, so the
-  parameters are chosen again with the cause fitted at every step and the diagnosis re-run on
-  them, until it names the cause it named before (at most :data:`MAX_ROUNDS` rounds). Of the
-  rounds that named a cause, the one whose extended model has the lowest cross-validated RMS is
-  kept (all are judged on the same folds). On Gao et al.'s arm the first round names joint 2,
-  the second joint 3, which the third confirms (the full geometry names joint 3 at once).
+  family-wise p-value under the null of the whole screen). A named cause changes which geometric
+  parameters pay, so the parameters are chosen again with the cause fitted at every step and the
+  diagnosis re-run on them, until it names the cause it named before (at most :data:`MAX_ROUNDS`
+  rounds). Of the rounds that named a cause, the one whose extended model has the lowest
+  cross-validated RMS is kept (all are judged on the same folds). On Gao et al.'s arm the first
+  round names joint 2, the second joint 3, which the third confirms (the full geometry names joint
+  3 at once).
 - **Nested cross-validation** of the whole procedure (the choice re-run without each fold):
   the choice's own scores are biased low by the choosing; this estimate is not. It costs K
   choices and fits, so it runs by default only when cheap (:func:`nested_policy`).
