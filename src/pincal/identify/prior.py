@@ -19,6 +19,14 @@ Linearised at a fit (the default pull's; each weight's fit a Gauss-Newton step f
 (``P`` selects the pulled unknowns; the registration, tool, fixed points and effects have flat
 priors). Noisy data or many weakly determined directions raise the chosen weight; clean, rich
 data lower it. No held-out data is used: the training rows alone decide.
+
+Distance data count their pairs by their effective number (:func:`counted_rows`): the
+``N(N-1)/2`` distances of ``N`` measured points carry at most ``3N - 6`` independent pieces of
+information (a rigid motion of all the points changes none of them), and their errors are
+correlated through the points. Counting the pairs as ``n`` independent residuals overweights the
+data against the prior. With every row scaled by the same factor ``c = n_eff / n`` (the
+effective-number approximation of whitening), the formula keeps its form with ``n_eff`` for
+``n``: the factor moves the weight's scale and the log determinant by constants.
 """
 
 from __future__ import annotations
@@ -32,6 +40,7 @@ from pincal.errors import DataError
 from pincal.identify.chunked import normal_terms
 from pincal.identify.lm import OptimizeResult
 from pincal.identify.records import PriorChoice
+from pincal.identify.rows import ProblemRows
 from pincal.identify.solver import Setup, solve
 
 #: Weights tried [per natural unit]: 1e-3 to 10, four per decade (0.1 m of correction then
@@ -61,6 +70,14 @@ def pulled(setup: Setup, free: np.ndarray) -> np.ndarray:
     return np.arange(int(free.sum())) < int(free[: setup.model.n_params].sum())
 
 
+def counted_rows(problem: ProblemRows, n_rows: int) -> int:
+    """The residual rows the evidence counts: ``n_rows``, but for distance data at most
+    ``3 N - 6`` for ``N`` measured points (see the module)."""
+    if not problem.measurement.measure.by_pairs:
+        return n_rows
+    return max(1, min(n_rows, 3 * len(problem.data) - 6))
+
+
 def log_evidence(setup: Setup, theta: np.ndarray, free: np.ndarray) -> float:
     """Log evidence of the fit ``theta`` (free unknowns ``free``) at ``setup.prior_weight``,
     ``σ`` profiled out, up to a constant shared by every weight (see the module's formula)."""
@@ -72,7 +89,7 @@ def log_evidence(setup: Setup, theta: np.ndarray, free: np.ndarray) -> float:
     delta = (theta[geometric] - problem.initial_theta()[geometric]) / setup.scale[geometric]
     total = float(res @ res + weight**2 * delta @ delta)
     normal = jac.T @ jac + weight**2 * np.diag(pen.astype(float))
-    return _score(len(res), int(pen.sum()), int(free.sum()), total, weight, normal)
+    return _score(counted_rows(problem, len(res)), int(pen.sum()), int(free.sum()), total, weight, normal)
 
 
 def choose_weight(
@@ -122,7 +139,7 @@ def evidence_curve(
     geometric = np.flatnonzero(free)[pen > 0]
     delta = np.zeros(len(pen))
     delta[pen > 0] = (theta[geometric] - problem.initial_theta()[geometric]) / setup.scale[geometric]
-    n_pulled = int(pen.sum())
+    n_pulled, n_rows = int(pen.sum()), counted_rows(problem, n_rows)
     out = []
     for weight in weights:
         normal = gram + weight**2 * np.diag(pen)
