@@ -98,6 +98,27 @@ def test_the_linearised_curve_is_the_evidence_of_each_fit() -> None:
         assert abs(linear - log_evidence(trial, solve(trial, start, free)[0], free)) <= 0.1, weight
 
 
+@pytest.mark.parametrize("seed", [0, 2, 4])
+def test_distance_data_are_pulled_as_the_points_they_come_from(seed: int) -> None:
+    """On an exact URDF the evidence of position data picks the strongest pulls of the grid; the
+    distances between the same points carry no more information, so they pick as strong a pull
+    (within one step of the grid). Counting the N(N-1)/2 pairs as independent rows chose pulls
+    up to 6 times weaker."""
+    from pincal.simulation.truth import random_truth
+
+    robot = _robot("ur5")
+    true = random_truth(robot, seed, tool_distance=(0.05, 0.05))
+    true = replace(true, x=np.zeros_like(true.x))
+    data = true.measure(robot.random_configurations(30, np.random.default_rng(seed), 0.05), NOISE, seed=seed + 7)
+    weights = {}
+    for measure in ("position", "distance"):
+        cal = pincal.calibrate(robot, data, measure=measure, params="all", extension="none")
+        assert cal.prior is not None and cal.prior.chosen_by == "evidence"
+        weights[measure] = cal.prior.weight
+    step = WEIGHTS[1] / WEIGHTS[0]
+    assert weights["distance"] >= weights["position"] / step * (1 - 1e-9), weights
+
+
 def test_noisier_data_choose_a_stronger_pull() -> None:
     """The same poses and truth, 20x the noise: the chosen weight (noise / expected correction)
     rises by at least 4x."""
