@@ -65,6 +65,7 @@ class Session:
     whole_gain_mm2: float | None
     data_gain_mm2: float | None
     seconds: float
+    whole_gain_sd_mm2: float | None = None
 
     @property
     def before(self) -> bool:
@@ -95,7 +96,8 @@ def run(where: str, truth: str, seed: int, sigma: float) -> Session:
     whole = None if beyond is None else beyond.whole_gain_mm2
     own = None if beyond is None else beyond.data_gain_mm2
     ratio = cal.test_after.rms_mm / cal.test_before.rms_mm
-    return Session(where, truth, seed, cal.guard.reliable, cal.guard.holds, ratio, whole, own, seconds)
+    sd = None if beyond is None else beyond.whole_gain_sd_mm2
+    return Session(where, truth, seed, cal.guard.reliable, cal.guard.holds, ratio, whole, own, seconds, sd)
 
 
 def _rule(group: list[Session], rule: str) -> list[object]:
@@ -119,35 +121,33 @@ def summary(sessions: list[Session]) -> list[list[object]]:
     return rows
 
 
-#: Thresholds tried as a share of the expected gain on the fitted poses (0: the rule in use).
-SHARES = (0.0, 0.5, 1.0, 10.0)
+#: Thresholds tried: the expected gain across the limits above this many of its posterior
+#: standard deviations (0: above zero).
+SPREADS = (0.0, 0.5, 1.0, 2.0)
 
 
-def _gain(s: Session) -> float:
-    return float("nan") if s.whole_gain_mm2 is None else s.whole_gain_mm2
-
-
-def shares(sessions: list[Session]) -> list[list[object]]:
-    """Per range and truth and per threshold ``whole gain > share x data gain``: the fits the
-    guard and that rule export, those of them more than 5 % worse, and those refused though better."""
+def spreads(sessions: list[Session]) -> list[list[object]]:
+    """Per range and truth and per threshold ``whole gain > z x its standard deviation``: the fits
+    the guard and that rule export, those of them more than 5 % worse, and those refused though
+    better."""
     rows: list[list[object]] = []
     for where, truth in GROUPS:
         checked = [
             s for s in sessions if (s.range, s.truth) == (where, truth) and s.whole_gain_mm2 is not None
         ]
-        for share in SHARES if checked else ():
-            kept = [s for s in checked if _gain(s) > share * max(s.data_gain_mm2 or 0.0, 0.0)]
+        for z in SPREADS if checked else ():
+            kept = [s for s in checked if (s.whole_gain_mm2 or 0.0) > z * (s.whole_gain_sd_mm2 or 0.0)]
             refused = [s for s in checked if s not in kept]
             worse, better = sum(s.ratio > WORSE for s in kept), sum(s.ratio < 1.0 for s in refused)
-            rows.append([where, truth, len(checked), share, len(kept), worse, better])
+            rows.append([where, truth, len(checked), z, len(kept), worse, better])
     return rows
 
 
-SHARE_HEADER = (
+SPREAD_HEADER = (
     "fitted poses",
     "truth",
     "passed the guard",
-    "threshold: share of the gain on the fitted poses",
+    "threshold: standard deviations of the expected gain",
     "exported",
     "> 5 % worse",
     "refused, better than nominal",
@@ -232,9 +232,9 @@ def main(argv: list[str] | None = None) -> int:
     text = table(HEADER, summary(sessions))
     print(text)
     print(f"{len(sessions)} sessions in {time.perf_counter() - start:.0f} s")
-    by_share = table(SHARE_HEADER, shares(sessions))
-    print(by_share)
-    sections = [text, "", by_share]
+    by_spread = table(SPREAD_HEADER, spreads(sessions))
+    print(by_spread)
+    sections = [text, "", by_spread]
     if args.cost:
         with tempfile.TemporaryDirectory() as folder:
             said = cost(args.cost, Path(folder))

@@ -64,8 +64,9 @@ def check(setup: Setup, theta: np.ndarray, nominal: np.ndarray, free: np.ndarray
     rng = np.random.default_rng(0)
     q_whole = robot.random_configurations(n, rng)
     q_own = data.q if len(data) <= OWN_POSES else data.q[rng.choice(len(data), OWN_POSES, replace=False)]
-    whole, own = expected_gain(problem, theta, post, q_whole), expected_gain(problem, theta, post, q_own)
-    return Extrapolation(whole * 1e6, own * 1e6, n, post.weight)
+    whole, spread = expected_gain(problem, theta, post, q_whole, spread=True)
+    own, _ = expected_gain(problem, theta, post, q_own)
+    return Extrapolation(whole * 1e6, own * 1e6, n, post.weight, spread * 1e6)
 
 
 @dataclass(frozen=True)
@@ -77,34 +78,57 @@ class Posterior:
         nominal: θ of the nominal model (registration and tool fitted).
         mean: θ of the posterior mean (the Gauss-Newton step from ``nominal``).
         weight: the pull's weight [per natural unit].
+        every: mask of the unknowns the posterior holds.
+        covariance: their posterior covariance, in θ's units: ``σ² S (JᵀJ + w²P)⁻¹ S`` (``S`` the
+            natural scales, ``σ²`` the residual's mean square at the mean).
     """
 
     nominal: np.ndarray
     mean: np.ndarray
     weight: float
+    every: np.ndarray
+    covariance: np.ndarray
 
     @classmethod
     def of(cls, setup: Setup, nominal: np.ndarray, every: np.ndarray) -> Posterior:
         """The posterior of the unknowns ``every`` of ``setup`` from ``nominal``."""
         terms = normal_terms(setup.problem, nominal, every)
         weight = WEIGHTS[int(np.argmax(evidence_curve(setup, nominal, every, WEIGHTS, terms)))]
-        unscaled, unscaled_grad, _, _ = terms
+        unscaled, unscaled_grad, rr, n_rows = terms
         scale = setup.scale[every]
         gram, grad = unscaled * np.outer(scale, scale), unscaled_grad * scale
         pen = pulled(setup, every).astype(float)
-        step = -np.linalg.lstsq(gram + weight**2 * np.diag(pen), grad, rcond=None)[0]
+        inverse = np.linalg.pinv(gram + weight**2 * np.diag(pen))
+        step = -inverse @ grad
         mean = nominal.copy()
         mean[every] += step * scale
-        return cls(nominal, mean, weight)
+        held = weight**2 * float(step @ (pen * step))  # the pull's rows
+        moved = rr + 2.0 * float(step @ grad) + float(step @ gram @ step) + held
+        sigma2 = max(moved, 0.0) / max(n_rows - int(np.count_nonzero(every)), 1)
+        return cls(nominal, mean, weight, every, sigma2 * inverse * np.outer(scale, scale))
 
 
-def expected_gain(problem: Problem, fit: np.ndarray, post: Posterior, q: np.ndarray) -> float:
+def expected_gain(
+    problem: Problem, fit: np.ndarray, post: Posterior, q: np.ndarray, spread: bool = False
+) -> tuple[float, float]:
     """Mean over the configurations ``q`` (N, n) [rad or m] of the fit's gain over the nominal model
     in squared tip-position error, expected under the posterior: ``|m - n|² - |m - f|²`` [m²],
     ``n``, ``f`` and ``m`` the tip positions the nominal model, the fit and the posterior mean
-    predict (see the module)."""
+    predict (see the module); with ``spread``, its posterior standard deviation [m²] (else 0).
+
+    The mean gain is linear in the true tip positions ``t``: ``2 Σ (f - n)·t / N`` plus what does
+    not depend on ``t``; with ``t = m + J δ``, ``δ`` the posterior's spread of the unknowns, its
+    variance is ``4 gᵀ Σ g / N²`` with ``g = Jᵀ (f - n)`` summed over the configurations.
+    """
     quats = np.tile([1.0, 0.0, 0.0, 0.0], (len(q), 1)) if problem.data.has_orientation else None
     blank = every_marker(problem.data, q, quats)
     sampled = Problem(problem.model, replace(problem.measurement, pairs=None), blank, problem.extension)
     nominal, fitted, mean = (sampled.predict(theta)[0] for theta in (post.nominal, fit, post.mean))
-    return float((np.sum((mean - nominal) ** 2) - np.sum((mean - fitted) ** 2)) / len(q))
+    gain = float((np.sum((mean - nominal) ** 2) - np.sum((mean - fitted) ** 2)) / len(q))
+    if not spread:
+        return gain, 0.0
+    width = problem.measurement.measure.width
+    jac = sampled.jacobian(post.mean, post.every)
+    jac = jac[np.arange(len(jac)) % width < 3] if width > 3 else jac  # the position rows
+    along = jac.T @ (fitted - nominal).reshape(-1)
+    return gain, float(2.0 * np.sqrt(max(along @ post.covariance @ along, 0.0)) / len(q))

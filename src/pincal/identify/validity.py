@@ -95,12 +95,14 @@ class Extrapolation:
         samples: the configurations drawn across the limits.
         weight: the pull's weight of the posterior the gains are expected under (every
             correction fitted, the weight of largest evidence) [per natural unit].
+        whole_gain_sd_mm2: the posterior standard deviation of ``whole_gain_mm2`` [mm²].
     """
 
     whole_gain_mm2: float
     data_gain_mm2: float
     samples: int
     weight: float
+    whole_gain_sd_mm2: float = 0.0
 
     @property
     def holds(self) -> bool:
