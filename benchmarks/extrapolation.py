@@ -216,13 +216,15 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--sessions", type=int, default=100)
     parser.add_argument("--quick", action="store_true", help="20 sessions per row")
+    parser.add_argument("--first-seed", type=int, default=0, help="seeds run: first-seed .. + sessions - 1")
     parser.add_argument("--sigma", type=float, default=0.05, help="noise per axis [mm]")
     parser.add_argument("--cost", type=int, default=5, help="runs of the cost measurement (0: none)")
     parser.add_argument("--json")
     parser.add_argument("--markdown")
     args = parser.parse_args(argv)
     n = 20 if args.quick else args.sessions
-    tasks = [(where, truth, seed) for where, truth in GROUPS for seed in range(n)]
+    seeds = range(args.first_seed, args.first_seed + n)
+    tasks = [(where, truth, seed) for where, truth in GROUPS for seed in seeds]
 
     def task(k: int) -> Session:
         return run(*tasks[k], args.sigma * 1e-3)

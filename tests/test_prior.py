@@ -109,7 +109,8 @@ def test_distance_data_are_pulled_as_the_points_they_come_from(seed: int) -> Non
     robot = _robot("ur5")
     true = random_truth(robot, seed, tool_distance=(0.05, 0.05))
     true = replace(true, x=np.zeros_like(true.x))
-    data = true.measure(robot.random_configurations(30, np.random.default_rng(seed), 0.05), NOISE, seed=seed + 7)
+    q = robot.random_configurations(30, np.random.default_rng(seed), 0.05)
+    data = true.measure(q, NOISE, seed=seed + 7)
     weights = {}
     for measure in ("position", "distance"):
         cal = pincal.calibrate(robot, data, measure=measure, params="all", extension="none")

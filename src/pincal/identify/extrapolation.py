@@ -12,7 +12,9 @@ configuration ``q`` is ``t(q) ~ N(m(q), V(q))``, ``m`` the posterior mean's pred
 ``n(q)`` and ``f(q)`` the nominal model's and the fit's predicted tip positions (each with its own
 registration and tool), the fit's gain in squared error, ``|t - n|² - |t - f|²``, has the
 posterior expectation ``|m - n|² - |m - f|²`` (``V`` cancels). The fit holds when the mean of it
-over configurations drawn across the joint limits is above zero.
+over configurations drawn across the joint limits is above
+:data:`~pincal.identify.validity.Z_SPREAD` of its posterior standard deviations (:func:`expected_gain`):
+where the data leave the posterior wide, its mean is a poor yardstick too.
 
 Why not the fit's own covariance: ``|Δ̂|² - 2 tr(J Σ Jᵀ)`` (``Δ̂ = f - n``, ``Σ`` the fit's
 posterior covariance) is unbiased only for parameters not chosen on the same data. After the

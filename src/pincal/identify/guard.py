@@ -15,8 +15,9 @@ nominal geometry (with its fitted registration and tool: no worse than the URDF 
 and says so; ``force_fit=True`` (``--force-fit``) exports the fit anyway.
 
 A fit that passes is then checked across the joint limits (:mod:`pincal.identify.extrapolation`):
-when it is expected to be worse than the nominal model outside the poses it was fitted on, the
-nominal geometry is exported in the same way (unless ``force_fit``).
+unless it is expected to beat the nominal model outside the poses it was fitted on (by two
+standard deviations of that expectation), the nominal geometry is exported in the same way
+(unless ``force_fit``).
 """
 
 from __future__ import annotations

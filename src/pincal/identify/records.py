@@ -164,7 +164,7 @@ class Guard:
 
     @property
     def holds(self) -> bool:
-        """The fit is not expected to be worse than the nominal model across the joint limits."""
+        """The fit is expected to beat the nominal model across the joint limits (or was not checked)."""
         return self.extrapolation is None or self.extrapolation.holds
 
     def text(self) -> str:
