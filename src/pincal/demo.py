@@ -108,8 +108,8 @@ def gao2013_section(seed: int) -> list[str]:
         (f"  the URDF with its sidecar (+ {_short(cause)})", full.after),
     ):
         out.append(f"   {label:54s} {stats.mean_mm:8.3f} {stats.max_mm:8.3f}")
-    if "+" in cause:
-        out.append(f"   (the causes: {cause.replace('+', ', ')})")
+    if cause != "no cause":
+        out.append(f"   (the cause{'s' if '+' in cause else ''}: {cause.replace('+', ', ')})")
     out.append(
         f"   gain {full.gain_vs_urdf:.2f}x on the URDF as is (the paper reports 3.5x on its own test "
         f"pairs; the geometry alone {cv.gain_vs_urdf:.2f}x), {full.gain:.2f}x on the nominal model with "
@@ -123,8 +123,12 @@ def gao2013_section(seed: int) -> list[str]:
 
 
 def _short(cause: str) -> str:
-    """A cause's label, or how many causes."""
-    return f"{cause.count('+') + 1} causes" if "+" in cause else cause
+    """How many causes (their labels follow the table: a label would push its row's figures out
+    of their column)."""
+    if cause == "no cause":
+        return cause
+    count = cause.count("+") + 1
+    return f"{count} cause" if count == 1 else f"{count} causes"
 
 
 def _as_chosen(robot: Robot, data: Dataset, seed: int) -> tuple[str, CrossValidation, CrossValidation]:

@@ -192,7 +192,8 @@ class Distance(MeasurementKind):
         pairs = problem.pairs
         points = problem.data.points
         u = points[pairs[:, 0]] - points[pairs[:, 1]]
-        u /= np.linalg.norm(u, axis=1, keepdims=True)
+        length = np.linalg.norm(u, axis=1, keepdims=True)
+        u = np.divide(u, length, out=np.zeros_like(u), where=length > 0)  # a pose measured twice: none
         return np.einsum("pk,pkd->pd", u, noise[pairs[:, 0]] - noise[pairs[:, 1]])
 
 
