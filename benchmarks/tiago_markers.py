@@ -31,6 +31,7 @@ import sys
 from dataclasses import dataclass
 from itertools import combinations
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -68,6 +69,11 @@ class MarkerRow:
         return self.ratio <= WITHIN
 
 
+#: What ``pincal calibrate`` passes by default (the API's own defaults fit every parameter and no
+#: effect).
+DEFAULTS: dict[str, Any] = {"params": "auto", "extension": "auto", "outliers": THRESHOLD}
+
+
 def one_marker(data: Dataset, k: int) -> Dataset:
     """Marker ``k``'s rows as a one-marker dataset (``x,y,z``)."""
     mine = np.flatnonzero(data.marker == k)
@@ -102,10 +108,10 @@ def run(datasets: Path) -> tuple[list[MarkerRow], list[str]]:
     robot = load_tiago(folder / "tiago_48_schunk.urdf")
     train = read_csv(folder / TRAIN, robot.joint_names, prismatic=robot.prismatic)
     val = read_csv(folder / VALIDATION, robot.joint_names, prismatic=robot.prismatic)
-    four = pincal.calibrate(robot, train, test=val, outliers=THRESHOLD)
+    four = pincal.calibrate(robot, train, test=val, **DEFAULTS)
     rows, ones = [], []
     for k, label in enumerate(train.marker_names):
-        one = pincal.calibrate(robot, one_marker(train, k), test=one_marker(val, k), outliers=THRESHOLD)
+        one = pincal.calibrate(robot, one_marker(train, k), test=one_marker(val, k), **DEFAULTS)
         ones.append(one)
         rows.append(
             MarkerRow(
