@@ -23,6 +23,7 @@ from pathlib import Path
 import pytest
 
 import pincal
+import pincal.auto.pipeline
 import pincal.data.dataset
 import pincal.export.urdf_writer
 import pincal.files
@@ -275,7 +276,12 @@ def test_a_real_ctrl_c_between_the_renames_leaves_new_files_together(
             os.kill(os.getpid(), signal.SIGINT)
 
     monkeypatch.setattr(pincal.files.os, "replace", replace)
-    code, _, err = _run(capfd, *_calibrate(data, "-o", urdf, "--report", report, "--force"))
+    # Ctrl-C as a terminal delivers it (a shell starts background jobs with SIGINT ignored)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        code, _, err = _run(capfd, *_calibrate(data, "-o", urdf, "--report", report, "--force"))
+    finally:
+        signal.signal(signal.SIGINT, previous)
     assert code == 130, err
     assert len(renames) == 3
     assert json.loads(report.read_text(encoding="utf-8")).get("old") is None
@@ -288,7 +294,8 @@ def test_a_real_ctrl_c_between_the_renames_leaves_new_files_together(
 
 #: A child that runs ``pincal calibrate`` whose fit waits to be interrupted.
 _CHILD = """
-import sys, time
+import signal, sys, time
+signal.signal(signal.SIGINT, signal.default_int_handler)  # as from a terminal, even in the background
 import pincal.auto.pipeline
 from pincal.cli import main
 
