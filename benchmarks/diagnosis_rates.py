@@ -24,15 +24,14 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from guard_rates import Simulators
-from markdown_page import command_line, table, write_page
+from markdown_page import publish, table
 
 from pincal.auto.diagnose import diagnose
 from pincal.auto.diagnosis import MIN_GAIN, Diagnosis
@@ -180,13 +179,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{k + 1} of {len(keys)} sessions", flush=True)
 
     sessions = parallel_map(lambda k: run(sims, keys[k], args), len(keys), args.jobs, done)
-    text = table(HEADER, summary(sessions))
-    print(text)
-    if args.json:
-        args.json.write_text(json.dumps([asdict(s) for s in sessions], indent=1))
-    if args.markdown:
-        given = sys.argv[1:] if argv is None else argv
-        write_page(args.markdown, command_line("diagnosis_rates.py", given, {}), [text])
+    publish("diagnosis_rates.py", argv, table(HEADER, summary(sessions)), sessions, args.json, args.markdown)
     return 0
 
 

@@ -8,9 +8,13 @@ produced them), so that running the command again refreshes the figures and noth
 from __future__ import annotations
 
 import datetime
+import json
 import os
+import sys
 from collections.abc import Sequence
+from dataclasses import asdict
 from pathlib import Path
+from typing import Any
 
 import pincal
 from pincal.files import atomic_write
@@ -53,3 +57,22 @@ def table(header: Sequence[str], rows: Sequence[Sequence[object]]) -> str:
 def text_block(text: str) -> str:
     """Text printed by the script, shown as it is."""
     return "```text\n" + text.rstrip() + "\n```"
+
+
+def publish(
+    script: str,
+    argv: Sequence[str] | None,
+    text: str,
+    sessions: Sequence[Any],
+    json_path: Path | None,
+    md_path: Path | None,
+) -> None:
+    """Print a sessions benchmark's table ``text``, save its sessions (dataclasses) as JSON when
+    asked, and write its page when asked, naming the command as it was run (``argv`` None: this
+    process's own arguments)."""
+    print(text)
+    if json_path:
+        json_path.write_text(json.dumps([asdict(s) for s in sessions], indent=1))
+    if md_path:
+        given = sys.argv[1:] if argv is None else argv
+        write_page(md_path, command_line(script, given, {}), [text])

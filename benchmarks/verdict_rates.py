@@ -19,14 +19,13 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import json
 import sys
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from guard_rates import Simulators
-from markdown_page import command_line, table, write_page
+from markdown_page import publish, table
 
 import pincal
 from pincal.auto.residual import residual_verdict
@@ -114,13 +113,7 @@ def main(argv: list[str] | None = None) -> int:
         for seed in range(args.sessions)
     ]
     sessions = parallel_map(lambda k: run(sims, keys[k], args.sigma * 1e-3), len(keys), args.jobs)
-    text = table(HEADER, summary(sessions))
-    print(text)
-    if args.json:
-        args.json.write_text(json.dumps([asdict(s) for s in sessions], indent=1))
-    if args.markdown:
-        given = sys.argv[1:] if argv is None else argv
-        write_page(args.markdown, command_line("verdict_rates.py", given, {}), [text])
+    publish("verdict_rates.py", argv, table(HEADER, summary(sessions)), sessions, args.json, args.markdown)
     return 0
 
 
