@@ -136,8 +136,6 @@ class Linearised:
         self.large = chunked.is_large(base.problem(data))
         self.design: Design | None = None  # the rows themselves, kept when the data is small
         self.sums, self.columns, self.residuals = self._pass(list(pool or []), keep=True)
-        diag = np.diag(self.sums.gram())[: len(self.free)]
-        self.norms = np.where(diag > 0, np.sqrt(diag), 1.0)
 
     def _parts(self) -> list[tuple[Dataset, int]]:
         """The data in blocks of poses with their first pose's index (one part unless large)."""

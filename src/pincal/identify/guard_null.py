@@ -30,7 +30,6 @@ import numpy as np
 
 from pincal.identify.forward_selection import KEEP_ALL, MIN_GAIN, Design, choose_step, design, walk
 from pincal.identify.solver import Setup
-from pincal.identify.uncertainty import pair_directions
 from pincal.threads import parallel_map
 
 #: Draws of pure noise through the selection and the guard: with the largest as the threshold,
@@ -103,10 +102,8 @@ def noise_rows(setup: Setup, n_rows: int, sigma: float, rng: np.random.Generator
     problem = setup.problem
     if not problem.measurement.measure.by_pairs:
         return rng.normal(0.0, sigma, n_rows)
-    points, pairs = setup.data.points, problem.pairs
-    along = pair_directions(points, pairs)
-    eps = rng.normal(0.0, sigma / np.sqrt(2.0), points.shape)
-    return np.sum(along * (eps[pairs[:, 0]] - eps[pairs[:, 1]]), axis=1)
+    eps = rng.normal(0.0, sigma / np.sqrt(2.0), setup.data.points.shape)
+    return problem.measurement.measure.noise_rows(problem, n_rows, eps[:, :, None])[:, 0]
 
 
 def _null_z(setup: Setup, plan: Design, sigma: float, rng: np.random.Generator) -> float:

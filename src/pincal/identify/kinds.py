@@ -27,6 +27,14 @@ from pincal.identify.rows import ProblemRows
 from pincal.kinematics.chain import jlog3, log3
 
 
+def pair_directions(points: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+    """Each pair's unit vector from its second measured point to its first (zero for a pose
+    measured twice, whose distance has no direction)."""
+    along = points[pairs[:, 0]] - points[pairs[:, 1]]
+    length = np.linalg.norm(along, axis=1, keepdims=True)
+    return np.divide(along, length, out=np.zeros_like(along), where=length > 0)
+
+
 class MeasurementKind:
     """What one kind of measurement is: its rows, unknowns and words.
 
@@ -190,10 +198,7 @@ class Distance(MeasurementKind):
     def noise_rows(self, problem: ProblemRows, n_rows: int, noise: np.ndarray) -> np.ndarray:
         """The distance rows (P, draws) [m] that ``noise`` on the measured points makes."""
         pairs = problem.pairs
-        points = problem.data.points
-        u = points[pairs[:, 0]] - points[pairs[:, 1]]
-        length = np.linalg.norm(u, axis=1, keepdims=True)
-        u = np.divide(u, length, out=np.zeros_like(u), where=length > 0)  # a pose measured twice: none
+        u = pair_directions(problem.data.points, pairs)
         return np.einsum("pk,pkd->pd", u, noise[pairs[:, 0]] - noise[pairs[:, 1]])
 
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from pincal.identify import chunked
+from pincal.identify.kinds import pair_directions
 from pincal.identify.measurements import Problem
 
 #: What the reported standard deviations are.
@@ -88,14 +89,6 @@ def _pulled_normal(
     pen = np.arange(int(free.sum())) < int(free[: problem.model.n_params].sum())
     inverse = np.linalg.pinv(jac.T @ jac + weight**2 * np.diag(pen.astype(float)))
     return jac, problem.residuals(theta), inverse
-
-
-def pair_directions(points: np.ndarray, pairs: np.ndarray) -> np.ndarray:
-    """Each pair's unit vector from its second measured point to its first (zero for a pose
-    measured twice, whose distance has no direction)."""
-    along = points[pairs[:, 0]] - points[pairs[:, 1]]
-    length = np.linalg.norm(along, axis=1, keepdims=True)
-    return np.divide(along, length, out=np.zeros_like(along), where=length > 0)
 
 
 def carried_to_points(problem: Problem, jac: np.ndarray) -> np.ndarray:
