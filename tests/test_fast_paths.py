@@ -244,3 +244,50 @@ def test_nested_cross_validation_in_two_processes_is_the_serial_one(
     for fold_one, fold_two in zip(serial.calibrations, parallel.calibrations):
         assert np.array_equal(fold_one.theta, fold_two.theta)
     assert np.array_equal(runs["1"].theta, runs["2"].theta)
+
+
+@pytest.mark.parametrize("quick", [False, True])
+def test_diagnosis_in_two_processes_is_the_serial_one(
+    get_robot, monkeypatch: pytest.MonkeyPatch, quick: bool
+) -> None:
+    """The baseline's folds, the finalists' fits and all their folds run as one batch of
+    workers: every figure and fit is the serial loop's."""
+    robot = get_robot("ur5")
+    truth, fit, _ = pincal.simulate(robot, n_fit=40, n_test=0, seed=4)
+    hidden = Extension.parse(robot, "gear_harmonic:elbow_joint")
+    fit = hide_effect(truth, hidden, fit.q, 3e-4, seed=4).measure(fit.q, 3e-5, None, seed=6)
+    runs = {}
+    for workers in ("1", "2"):
+        monkeypatch.setenv("PINCAL_WORKERS", workers)
+        runs[workers] = pincal.diagnose(robot, fit, quick=quick)
+    one, two = runs["1"], runs["2"]
+    assert one.cause is not None and one.cause.extension.label == hidden.label
+    assert one.baseline_cv_rms_mm == two.baseline_cv_rms_mm
+    assert [c.extension.label for c in one.candidates] == [c.extension.label for c in two.candidates]
+    assert [c.cv_rms_mm for c in one.candidates] == [c.cv_rms_mm for c in two.candidates]
+    finals = [(a, b) for a, b in zip(one.candidates, two.candidates) if a.calibration is not None]
+    assert finals
+    for a, b in finals:
+        assert b.calibration is not None and np.array_equal(a.calibration.theta, b.calibration.theta)
+
+
+@pytest.mark.parametrize(("pincal_threads", "loaded"), [(None, 1), ("0", None)])
+def test_the_command_loads_blas_with_its_threads(pincal_threads: str | None, loaded: int | None) -> None:
+    """``pincal.cli`` has OpenBLAS load with one thread (its workers then start none), unless
+    ``PINCAL_THREADS=0`` leaves BLAS as it is."""
+    import os
+
+    env = {k: v for k, v in os.environ.items() if k not in ("OPENBLAS_NUM_THREADS", "PINCAL_THREADS")}
+    if pincal_threads is not None:
+        env["PINCAL_THREADS"] = pincal_threads
+    code = (
+        "import os, pincal.cli, numpy\n"
+        "from threadpoolctl import threadpool_info\n"
+        "print(os.environ.get('OPENBLAS_NUM_THREADS'), "
+        "min(i['num_threads'] for i in threadpool_info() if i['user_api'] == 'blas'))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    said, threads = out.stdout.split()
+    assert said == str(loaded)
+    if loaded is not None:
+        assert int(threads) == loaded

@@ -27,6 +27,7 @@ import functools
 import multiprocessing
 import os
 import signal
+import sys
 import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -82,6 +83,19 @@ def blas_threads(value: int | str | None = None) -> Iterator[None]:
         _controller.append(ThreadpoolController())
     with _controller[0].limit(limits=count, user_api="blas"):
         yield
+
+
+def load_blas_with_default() -> None:
+    """Have OpenBLAS load with :func:`thread_count`'s threads (``OPENBLAS_NUM_THREADS``), unless
+    NumPy is loaded already, the variable is set, or ``PINCAL_THREADS`` is 0 or not a number."""
+    if "numpy" in sys.modules or "OPENBLAS_NUM_THREADS" in os.environ:
+        return
+    try:
+        count = thread_count()
+    except PincalError:
+        return  # said where the count is used
+    if count > 0:
+        os.environ["OPENBLAS_NUM_THREADS"] = str(count)
 
 
 def limited(func: F) -> F:

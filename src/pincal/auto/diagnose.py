@@ -45,7 +45,7 @@ def diagnose(
         payload: a load on the tip, for the gravity torques.
         progress: called as ``progress(done, total, label)`` after each candidate.
         quick: judge nonlinearly only the finalists whose linearised gain reaches
-            :data:`~pincal.auto.diagnosis.QUICK_GAIN` (the others are listed as screened).
+            :data:`~pincal.auto.finalists.QUICK_GAIN` (the others are listed as screened).
         **options: passed to :func:`pincal.calibrate` (registration, tool, ...).
     """
     fit = calibrate_unjudged

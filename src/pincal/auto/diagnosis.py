@@ -24,13 +24,14 @@ from typing import Any
 
 import numpy as np
 
+from pincal.auto.finalists import Finalists, batch, quick_pass
 from pincal.auto.screen_null import ALPHA, ScreenNull, draws_for, screen_null
 from pincal.auto.screening import Linearised, Screen
 from pincal.data.dataset import Dataset
 from pincal.identify.calibration import Calibration
-from pincal.identify.kfold import Fit, cross_validate_with
+from pincal.identify.kfold import Fit, FoldRuns
 from pincal.identify.warm import WarmStart
-from pincal.kinematics.effects import AnyEffect, Extension, candidates, combined
+from pincal.kinematics.effects import AnyEffect, Extension, candidates
 from pincal.kinematics.gravity import Payload, massless
 from pincal.kinematics.stiffness import Stiffness, compliance_stiffness, implausible
 from pincal.robot.robots import Robot
@@ -40,12 +41,6 @@ from pincal.threads import limited
 MIN_GAIN = 1.1
 #: Candidates judged by the nonlinear cross-validation after the linearised screen.
 FINALISTS = 3
-#: ``quick`` diagnoses (``calibrate --extend auto``) judge by the nonlinear cross-validation only
-#: the finalists whose linearised cross-validated gain reaches this (half of :data:`MIN_GAIN`'s
-#: margin: the linearisation at the geometric fit is close, so one below it cannot reach
-#: :data:`MIN_GAIN`); on data the rigid model explains, none does, and the diagnosis costs one
-#: cross-validation instead of four.
-QUICK_GAIN = 1.05
 
 
 @dataclass(frozen=True)
@@ -283,11 +278,13 @@ def diagnose_with(
     held = given.parts if given is not None else ()
     taken = {e.label for e in held}
     pool = [e for e in (candidates(robot, payload) if effects is None else effects) if e.label not in taken]
+    what = (robot, data, model, measure)
+    base_runs = None
     if baseline is None or baseline.calibration is None:
         base = fit(robot, data, model, measure, extension=given, **options)  # first: the data may fall short
         options["start"] = WarmStart.of(base)  # the folds and the candidates begin at the baseline's fit
-        cv = cross_validate_with(fit, robot, data, model, measure, folds, seed, extension=given, **options)
-        base_rms = cv.after.rms_mm
+        base_runs = FoldRuns.of(fit, what, folds, seed, {**options, "extension": given})
+        base_rms = float("nan")
     else:
         base, base_rms = baseline.calibration, baseline.cv_rms_mm
         options["start"] = WarmStart.of(base)
@@ -304,22 +301,23 @@ def diagnose_with(
     null = screen_null(lin, [ext for ext, _ in screens], draws_for(step), seed)
     p_of = _p_values(lin, null)
     options["partial"] = True
-    finalists: list[Candidate] = []
-    n_final = min(FINALISTS, len(screens))
-    if quick:
-        n_final = sum(base_rms / s.cv_rms_mm >= QUICK_GAIN for _, s in screens[:n_final])
-    for k, (ext, screen) in enumerate(screens[:n_final]):
-        both = combined([*held, ext])
-        full = fit(robot, data, model, measure, extension=both, **options)
+    top = screens[: min(FINALISTS, len(screens))]
+    fits = Finalists(fit, what, [*held], options)
+    likely = quick_pass(lin.screen().cv_rms_mm, top) if quick else len(top)  # a guess: started early
+    base_jobs = [] if base_runs is None else base_runs.jobs()
+    first = batch([*base_jobs, *fits.jobs(top[:likely])])  # the baseline's folds beside the fits
+    if base_runs is not None:
+        base_rms = base_runs.pooled(first[: len(base_jobs)]).after.rms_mm
+    first = first[len(base_jobs) :]
+    n_final = quick_pass(base_rms, top) if quick else len(top)
+    fulls = first[:n_final] + batch(fits.jobs(top[len(first) : n_final]))
+    for k, (ext, _) in enumerate(top[:n_final]):
         if progress is not None:
             progress(len(pool) + k + 1, total, f"{ext.label} (nonlinear)")
-        if not full.identifiability.identifiable[
-            full.model.n_params : full.model.n_params + ext.n_params + sum(e.n_params for e in held)
-        ].all():
-            continue
-        warm = {**options, "start": WarmStart.of(full)}  # its folds begin at its fit on all poses
-        cv = cross_validate_with(fit, robot, data, model, measure, folds, seed, extension=both, **warm)
-        finalists.append(Candidate(ext, cv.after.rms_mm, p_of(screen), full, data.q))
+    judged_cv = fits.cross_validated(fulls, top[:n_final], folds, seed)
+    finalists = [
+        Candidate(ext, cv.after.rms_mm, p_of(screen), full, data.q) for ext, screen, full, cv in judged_cv
+    ]
     finalists.sort(key=lambda c: c.cv_rms_mm)
     screened = [Candidate(ext, s.cv_rms_mm, p_of(s), None, data.q, s.params) for ext, s in screens[n_final:]]
     paying = [c for c in finalists if base_rms / c.cv_rms_mm >= MIN_GAIN and c.p_value < ALPHA / step]

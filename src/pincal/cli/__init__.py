@@ -23,6 +23,7 @@ import traceback
 from collections.abc import Iterator, Sequence
 from types import FrameType
 
+from pincal.cli import blas_start  # noqa: F401  (first: BLAS loads with the command's threads)
 from pincal.cli.flags import as_flags
 from pincal.cli.parser import build_parser
 from pincal.cli.values import attach_vectors

@@ -12,6 +12,7 @@ are held out in different folds is judged twice, once by each fold's model.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
@@ -107,23 +108,67 @@ def cross_validate_with(
         **options: passed to ``fit``; each fold fits what its poses identify
             (``partial=True``: a fold may lack the variety of the whole).
     """
-    if not 2 <= folds <= len(data):
-        raise DataError(f"cross-validation needs between 2 and {len(data)} folds (one per pose), got {folds}")
-    parts = pose_folds(data, folds, seed)
-
-    def one_fold(k: int) -> tuple[Calibration, list[np.ndarray]]:
-        kept = np.setdiff1d(np.arange(len(data)), parts[k])
-        cal = _fold_fit(fit, (robot, data, kept, model, measure), folds, options)
-        return cal, held_out_errors(cal, data, parts[k])
+    runs = FoldRuns.of(fit, (robot, data, model, measure), folds, seed, options)
 
     def done(k: int) -> None:
         if progress is not None:
             progress(k + 1, folds, f"cross-validation, fold {k + 1} of {folds}")
 
-    answers = parallel_map(one_fold, len(parts), done=done)  # the folds are independent
-    pooled = [[errs[j] for _, errs in answers] for j in range(3)]
-    urdf, before, after = (ErrorStats.of(np.concatenate(p)) for p in pooled)
-    return CrossValidation(folds, urdf, before, after, tuple(cal for cal, _ in answers))
+    return runs.pooled(parallel_map(runs.fold, len(runs.parts), done=done))  # the folds are independent
+
+
+@dataclass(frozen=True, eq=False)
+class FoldRuns:
+    """A K-fold cross-validation as its independent fold fits: run by :func:`cross_validate_with`,
+    or among other work in one :func:`~pincal.threads.parallel_map` (each :meth:`fold`, then
+    :meth:`pooled`), with the same answer.
+
+    Attributes:
+        fit: the calibration.
+        what: robot, data, model and measure.
+        folds: K as asked (a data set of several markers per pose may give fewer parts).
+        parts: the held-out rows of each fold.
+        options: passed to ``fit``.
+    """
+
+    fit: Fit
+    what: tuple[Robot, Dataset, str | Model, str | None]
+    folds: int
+    parts: tuple[np.ndarray, ...]
+    options: dict[str, Any]
+
+    @classmethod
+    def of(cls, fit: Fit, what: tuple[Any, ...], folds: int, seed: int, options: dict[str, Any]) -> FoldRuns:
+        """The folds of ``what`` (robot, data, model, measure) fitted with ``fit``
+        (:func:`cross_validate_with`'s arguments).
+
+        Raises:
+            DataError: fewer than 2 or more folds than poses.
+        """
+        data = what[1]
+        if not 2 <= folds <= len(data):
+            raise DataError(
+                f"cross-validation needs between 2 and {len(data)} folds (one per pose), got {folds}"
+            )
+        parts = tuple(pose_folds(data, folds, seed))
+        return cls(fit, (what[0], data, what[2], what[3]), folds, parts, dict(options))
+
+    def fold(self, k: int) -> tuple[Calibration, list[np.ndarray]]:
+        """The fit without fold ``k`` and its held-out errors (:func:`held_out_errors`)."""
+        robot, data, model, measure = self.what
+        kept = np.setdiff1d(np.arange(len(data)), self.parts[k])
+        cal = _fold_fit(self.fit, (robot, data, kept, model, measure), self.folds, self.options)
+        return cal, held_out_errors(cal, data, self.parts[k])
+
+    def jobs(self) -> list[Callable[[], tuple[Calibration, list[np.ndarray]]]]:
+        """Each fold's work as a job of no arguments."""
+        return [functools.partial(self.fold, k) for k in range(len(self.parts))]
+
+    def pooled(self, answers: list[tuple[Calibration, list[np.ndarray]]]) -> CrossValidation:
+        """The cross-validation of every fold's answer, in fold order."""
+        pooled = [[errs[j] for _, errs in answers] for j in range(3)]
+        urdf, before, after = (ErrorStats.of(np.concatenate(p)) for p in pooled)
+        return CrossValidation(self.folds, urdf, before, after, tuple(cal for cal, _ in answers))
 
 
 def _fold_fit(fit: Fit, what: tuple[Any, ...], folds: int, options: dict[str, Any]) -> Calibration:

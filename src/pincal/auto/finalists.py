@@ -1,0 +1,92 @@
+"""The diagnosis' nonlinear stage: the finalists' fits on all poses and their cross-validations,
+run as batches of independent jobs (:func:`batch`) that the worker processes share with the
+baseline's folds; the answers are the serial loop's, bit for bit."""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from pincal.auto.screening import Screen
+from pincal.identify.calibration import Calibration
+from pincal.identify.kfold import CrossValidation, Fit, FoldRuns
+from pincal.identify.warm import WarmStart
+from pincal.kinematics.effects import Extension, combined
+from pincal.threads import parallel_map
+
+#: ``quick`` diagnoses (``calibrate --extend auto``) judge by the nonlinear cross-validation only
+#: the finalists whose linearised cross-validated gain reaches this (half of the diagnosis'
+#: ``MIN_GAIN`` margin: the linearisation at the geometric fit is close, so one below it cannot
+#: reach ``MIN_GAIN``); on data the rigid model explains, none does, and the diagnosis costs one
+#: cross-validation instead of four.
+QUICK_GAIN = 1.05
+
+
+def quick_pass(base_rms: float, top: list[tuple[Extension, Screen]]) -> int:
+    """How many of the best screened candidates ``top`` a ``quick`` diagnosis judges by the
+    nonlinear cross-validation: those whose linearised gain over ``base_rms`` reaches
+    :data:`QUICK_GAIN`."""
+    return sum(base_rms / s.cv_rms_mm >= QUICK_GAIN for _, s in top)
+
+
+def batch(jobs: list[Callable[[], Any]]) -> list[Any]:
+    """Every job's answer, in order: independent work run together by the worker processes
+    (:func:`~pincal.threads.parallel_map`; bit-for-bit the serial loop's answers)."""
+    return parallel_map(lambda k: jobs[k](), len(jobs)) if jobs else []
+
+
+@dataclass(frozen=True)
+class Finalists:
+    """The nonlinear fits of the finalists and their cross-validations, as jobs for :func:`batch`.
+
+    Attributes:
+        fit: the calibration.
+        what: robot, data, model, measure.
+        held: the effects the baseline holds (each candidate is added to them).
+        options: the fit's options (warm-started at the baseline's fit).
+    """
+
+    fit: Fit
+    what: tuple[Any, ...]
+    held: list[Extension]
+    options: dict[str, Any]
+
+    def jobs(self, chosen: list[tuple[Extension, Screen]]) -> list[Callable[[], Calibration]]:
+        """The fit on all poses of each candidate of ``chosen``, with the effects held."""
+        return [functools.partial(self._full, ext) for ext, _ in chosen]
+
+    def _full(self, ext: Extension) -> Calibration:
+        return self.fit(*self.what, extension=combined([*self.held, ext]), **self.options)
+
+    def cross_validated(
+        self, fulls: list[Calibration], chosen: list[tuple[Extension, Screen]], folds: int, seed: int
+    ) -> list[tuple[Extension, Screen, Calibration, CrossValidation]]:
+        """Each candidate whose effects its fit on all poses ``fulls`` identifies, with its
+        K-fold cross-validation (every fold of every candidate run together, each fold begun at
+        its candidate's fit on all poses)."""
+        n_held = sum(e.n_params for e in self.held)
+        kept = [
+            (ext, screen, full)
+            for (ext, screen), full in zip(chosen, fulls)
+            if full.identifiability.identifiable[
+                full.model.n_params : full.model.n_params + ext.n_params + n_held
+            ].all()
+        ]
+        runs = [
+            FoldRuns.of(
+                self.fit,
+                self.what,
+                folds,
+                seed,
+                {**self.options, "extension": combined([*self.held, ext]), "start": WarmStart.of(full)},
+            )
+            for ext, _, full in kept
+        ]
+        answers = batch([job for r in runs for job in r.jobs()])
+        out = []
+        for (ext, screen, full), r in zip(kept, runs):
+            out.append((ext, screen, full, r.pooled(answers[: len(r.parts)])))
+            answers = answers[len(r.parts) :]
+        return out
