@@ -25,6 +25,7 @@ from typing import Any
 import pytest
 
 import pincal
+import pincal.cli  # before NumPy, as the command: BLAS loads with one thread, its workers start none
 import pincal.export.urdf_writer
 from pincal.export import urdf_writer
 
