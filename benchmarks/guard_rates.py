@@ -1,4 +1,4 @@
-"""The guard's error rates after ``params="auto"`` (issue 40), on two simulators.
+"""The guard's error rates after ``params="auto"`` (or with every parameter given), on two simulators.
 
 Sessions: UR5, tracker positions, Gaussian noise ``--sigma`` mm per axis, an unknown instrument
 registration and an unknown reflector, random commands (the outer 5 % of each range avoided),
@@ -13,15 +13,18 @@ Pinocchio-only simulator of ``benchmarks/verdict_audit.py``, which never calls p
 its points).
 
 Each session runs ``pincal.calibrate(robot, fit, params="auto", pull=Pull(force_fit=True))``
+(``--params all``: every parameter; ``--measure distance``: the points' pairwise distances)
 once: the fit, its guard ``z`` and the threshold are those of a normal call (``force_fit`` only
 makes the fit the exported model, so its error on the new poses is known whatever the guard
 says). ``before`` is the fixed threshold (``z > 2``); ``after`` the null of selection + guard
-(``z > z_min``, :mod:`pincal.identify.guard_null`).
+(``z > z_min``, :mod:`pincal.identify.guard_null`; with given parameters, the null of the guard
+alone for distance data, the fixed threshold for positions).
 
 Usage::
 
     python benchmarks/guard_rates.py [--sessions 100] [--poses 15 30] [--sigma 0.05]
-        [--truths exact perturbed] [--simulators own audit] [--json FILE] [--markdown FILE]
+        [--truths exact perturbed] [--simulators own audit] [--measure position|distance]
+        [--params auto|all] [--json FILE] [--markdown FILE]
         [--load JSON ...] (with --sessions 0: only the table of saved sessions)
 """
 
@@ -121,12 +124,23 @@ def _rest(truth: Truth) -> tuple[pin.SE3, np.ndarray, int]:
     return truth.instrument_T_base, truth.tool, truth.tip_id
 
 
-def run(sims: Simulators, simulator: str, truth: str, n: int, seed: int, sigma: float) -> Session:
-    """One session (``sigma`` in metres)."""
+def run(
+    sims: Simulators,
+    key: tuple[str, str, int, int],
+    sigma: float,
+    measure: str = "position",
+    params: str = "auto",
+) -> Session:
+    """One session (``key``: simulator, truth, poses, seed; ``sigma`` in metres), the points
+    calibrated as ``measure`` data (``distance``: every pair of them) on the parameters ``params``
+    (``auto`` or ``all``)."""
+    simulator, truth, n, seed = key
     make = sims.own if simulator == "own" else sims.audit_truth
     fit, new = make(truth, n, seed, sigma)
     start = time.perf_counter()
-    cal = pincal.calibrate(sims.robot, fit, params="auto", test=new, pull=pincal.Pull(force_fit=True))
+    wanted = "auto" if params == "auto" else None
+    force = pincal.Pull(force_fit=True)
+    cal = pincal.calibrate(sims.robot, fit, measure=measure, params=wanted, test=new, pull=force)
     seconds = time.perf_counter() - start
     assert cal.guard is not None and cal.test_after is not None and cal.test_before is not None
     ratio = cal.test_after.rms_mm / cal.test_before.rms_mm
@@ -201,6 +215,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--sigma", type=float, default=0.05, help="noise per axis [mm]")
     parser.add_argument("--truths", nargs="+", default=["exact", "perturbed"])
     parser.add_argument("--simulators", nargs="+", default=["own", "audit"])
+    parser.add_argument("--measure", default="position", choices=["position", "distance"])
+    parser.add_argument("--params", default="auto", choices=["auto", "all"], help="chosen, or every one")
     parser.add_argument("--jobs", type=int, default=2, help="sessions run at once")
     parser.add_argument("--json", type=Path)
     parser.add_argument("--markdown", type=Path)
@@ -220,7 +236,7 @@ def main(argv: list[str] | None = None) -> int:
     ]
 
     def task(k: int) -> Session:
-        return run(sims, *keys[k], args.sigma * 1e-3)
+        return run(sims, keys[k], args.sigma * 1e-3, args.measure, args.params)
 
     ran: list[Session] = parallel_map(task, len(keys), args.jobs)
     for s in ran:

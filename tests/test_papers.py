@@ -26,14 +26,17 @@ ZHANG_ROTATION_MRAD = {"before": (5.9, 6.6, 0.4), "after": (0.6, 0.8, 0.1)}
 def test_gao2013_distance_calibration_cross_validated() -> None:
     """Gao 2013 data: the calibrated POE model beats the URDF as is at least 3x on held-out pairs.
 
+    The fit is exported in every fold (``force_fit``): with every parameter given, the guard of
+    distance data (the null of its statistic, :mod:`pincal.identify.guard_null`) keeps it in 5 of 7
+    folds, 24 poses of distances not telling so many corrections from noise by its test.
+
     The paper's "before" is the nominal model with its nominal p_E0 (the URDF as it is, our
     ``urdf``); the calibration must also improve on the nominal model with p_E0 fitted.
     """
     data, nominal = pincal.gao2013_data()
     assert len(data) == 28 and nominal.shape == (28, 3)
-    cv = pincal.auto.crossval.cross_validate(
-        pincal.load_robot("mrres5"), data, "poe", "distance", folds=7, seed=0
-    )
+    robot, forced = pincal.load_robot("mrres5"), pincal.Pull(force_fit=True)  # the fit, as the paper's
+    cv = pincal.auto.crossval.cross_validate(robot, data, "poe", "distance", folds=7, seed=0, pull=forced)
     print(
         f"\nGao 2013, 7-fold CV, |distance error| on pairs with a held-out pose [mm]:"
         f"\n  URDF as is (nominal p_E0)  mean {cv.urdf.mean_mm:.3f}  max {cv.urdf.max_mm:.3f}"

@@ -30,7 +30,7 @@ from pincal.data.dataset import Dataset
 from pincal.identify.calibration import Calibration
 from pincal.identify.extrapolation import check
 from pincal.identify.folds import held_out_rows
-from pincal.identify.guard_null import NULL_MAX_POSES, null_threshold
+from pincal.identify.guard_null import GIVEN_DRAWS, NULL_DRAWS, NULL_MAX_POSES, null_threshold
 from pincal.identify.identifiability import Identifiability
 from pincal.identify.lm import OptimizeResult
 from pincal.identify.measurements import Problem
@@ -79,7 +79,7 @@ def judge(
         selected: the parameters were chosen by forward selection on these poses: the threshold
             is the null of selection + guard (:func:`threshold`).
     """
-    z_min, how = threshold(setup, nominal, selected)
+    z_min, how = threshold(setup, nominal, selected, free)
     setup = judged_on(setup)
     n_model = setup.problem.n_model
     registration = free & (np.arange(len(free)) >= n_model)
@@ -92,19 +92,25 @@ def judge(
     return Guard(_rms_mm(fit), _rms_mm(base), z, z_min, reliable or forced, forced, how)
 
 
-def threshold(setup: Setup, nominal: np.ndarray, selected: bool) -> tuple[float, str]:
-    """The guard's threshold [standard errors] and how it was set: :data:`Z_MIN`, or after a
-    forward selection the null quantile of selection + guard when higher
-    (:func:`pincal.identify.guard_null.null_threshold`)."""
-    if not selected:
+def threshold(
+    setup: Setup, nominal: np.ndarray, selected: bool, free: np.ndarray | None = None
+) -> tuple[float, str]:
+    """The guard's threshold [standard errors] and how it was set: :data:`Z_MIN`, or when higher
+    the null quantile of the guard's ``z`` on pure noise
+    (:func:`pincal.identify.guard_null.null_threshold`): after a forward selection, of selection
+    + guard; for distance data with given parameters (``free``, a mask), of the guard alone, as
+    pairs that share their poses' noise spread ``z`` wider than a normal statistic."""
+    pairs = setup.problem.measurement.measure.by_pairs
+    if not selected and not (pairs and free is not None):
         return Z_MIN, Guard.threshold_from
-    null = null_threshold(setup, nominal)
+    given = None if selected or free is None else free
+    draws = NULL_DRAWS if given is None else GIVEN_DRAWS
+    null = null_threshold(setup, nominal, draws, given=given)
+    what = "the same forward selection" if given is None else "the fit of the given parameters"
     if null is None:
-        return Z_MIN, (
-            f"fixed: the parameters were selected, but above {NULL_MAX_POSES} poses no null is drawn"
-        )
+        return Z_MIN, f"fixed: above {NULL_MAX_POSES} poses no null of {what} is drawn"
     said = (
-        f"the {null.rank}. largest ({null.z:.2f}) of the guard's z after the same forward selection on "
+        f"the {null.rank}. largest ({null.z:.2f}) of the guard's z after {what} on "
         f"{null.draws} draws of pure noise ({null.noise_mm:.3f} mm per row), at least {Z_MIN:g}: "
         f"false export on pure noise {null.alpha:.1%}"
     )
