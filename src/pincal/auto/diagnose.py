@@ -44,8 +44,9 @@ def diagnose(
             :func:`pincal.kinematics.effects.candidates`).
         payload: a load on the tip, for the gravity torques.
         progress: called as ``progress(done, total, label)`` after each candidate.
-        quick: judge nonlinearly only the finalists whose linearised gain reaches
-            :data:`~pincal.auto.finalists.QUICK_GAIN` (the others are listed as screened).
+        quick: judge nonlinearly only the finalists that could be named: their linearised gain
+            reaches :data:`~pincal.auto.finalists.QUICK_GAIN` and their family-wise p-value the
+            level of this step (the others are listed as screened).
         **options: passed to :func:`pincal.calibrate` (registration, tool, ...).
     """
     fit = calibrate_unjudged

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from pincal.auto.finalists import Finalists, batch, quick_pass
+from pincal.auto.finalists import Finalists, batch, worth_judging
 from pincal.auto.screen_null import ALPHA, ScreenNull, draws_for, screen_null
 from pincal.auto.screening import Linearised, Screen
 from pincal.data.dataset import Dataset
@@ -303,24 +303,25 @@ def diagnose_with(
     options["partial"] = True
     top = screens[: min(FINALISTS, len(screens))]
     fits = Finalists(fit, what, [*held], options)
-    likely = quick_pass(lin.screen().cv_rms_mm, top) if quick else len(top)  # a guess: started early
+    level = ALPHA / step
+    likely = worth_judging(top, lin.screen().cv_rms_mm, p_of, level) if quick else top  # started early
     base_jobs = [] if base_runs is None else base_runs.jobs()
-    first = batch([*base_jobs, *fits.jobs(top[:likely])])  # the baseline's folds beside the fits
+    first = batch([*base_jobs, *fits.jobs(likely)])  # the baseline's folds beside the fits
     if base_runs is not None:
         base_rms = base_runs.pooled(first[: len(base_jobs)]).after.rms_mm
-    first = first[len(base_jobs) :]
-    n_final = quick_pass(base_rms, top) if quick else len(top)
-    fulls = first[:n_final] + batch(fits.jobs(top[len(first) : n_final]))
-    for k, (ext, _) in enumerate(top[:n_final]):
+    finals = worth_judging(top, base_rms, p_of, level) if quick else top
+    fulls = fits.on_all_poses(finals, dict(zip((e.label for e, _ in likely), first[len(base_jobs) :])))
+    for k, (ext, _) in enumerate(finals):
         if progress is not None:
             progress(len(pool) + k + 1, total, f"{ext.label} (nonlinear)")
-    judged_cv = fits.cross_validated(fulls, top[:n_final], folds, seed)
+    judged_cv = fits.cross_validated(fulls, finals, folds, seed)
     finalists = [
         Candidate(ext, cv.after.rms_mm, p_of(screen), full, data.q) for ext, screen, full, cv in judged_cv
     ]
     finalists.sort(key=lambda c: c.cv_rms_mm)
-    screened = [Candidate(ext, s.cv_rms_mm, p_of(s), None, data.q, s.params) for ext, s in screens[n_final:]]
-    paying = [c for c in finalists if base_rms / c.cv_rms_mm >= MIN_GAIN and c.p_value < ALPHA / step]
+    others = [(ext, s) for ext, s in screens if all(ext is not e for e, _ in finals)]
+    screened = [Candidate(ext, s.cv_rms_mm, p_of(s), None, data.q, s.params) for ext, s in others]
+    paying = [c for c in finalists if base_rms / c.cv_rms_mm >= MIN_GAIN and c.p_value < level]
     rejected = tuple(c for c in paying if c.implausible is not None)
     cause = next((c for c in paying if c.implausible is None), None)
     draws = 0 if null is None else null.draws

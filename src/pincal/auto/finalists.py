@@ -24,11 +24,15 @@ from pincal.threads import parallel_map
 QUICK_GAIN = 1.05
 
 
-def quick_pass(base_rms: float, top: list[tuple[Extension, Screen]]) -> int:
-    """How many of the best screened candidates ``top`` a ``quick`` diagnosis judges by the
-    nonlinear cross-validation: those whose linearised gain over ``base_rms`` reaches
-    :data:`QUICK_GAIN`."""
-    return sum(base_rms / s.cv_rms_mm >= QUICK_GAIN for _, s in top)
+def worth_judging(
+    top: list[tuple[Extension, Screen]], base_rms: float, p_of: Callable[[Screen], float], level: float
+) -> list[tuple[Extension, Screen]]:
+    """Of the best screened candidates ``top``, those a ``quick`` diagnosis judges by the
+    nonlinear cross-validation: the ones that could be named, their linearised gain over
+    ``base_rms`` [mm] reaching :data:`QUICK_GAIN` and their family-wise p-value (``p_of``, known
+    before any nonlinear fit) under ``level``; the others' nonlinear figures could not change the
+    answer."""
+    return [(e, s) for e, s in top if base_rms / s.cv_rms_mm >= QUICK_GAIN and p_of(s) < level]
 
 
 def batch(jobs: list[Callable[[], Any]]) -> list[Any]:
@@ -56,6 +60,14 @@ class Finalists:
     def jobs(self, chosen: list[tuple[Extension, Screen]]) -> list[Callable[[], Calibration]]:
         """The fit on all poses of each candidate of ``chosen``, with the effects held."""
         return [functools.partial(self._full, ext) for ext, _ in chosen]
+
+    def on_all_poses(
+        self, chosen: list[tuple[Extension, Screen]], known: dict[str, Calibration]
+    ) -> list[Calibration]:
+        """The fit on all poses of each of ``chosen``: from ``known`` (by label), else fitted now."""
+        missing = [(e, s) for e, s in chosen if e.label not in known]
+        fitted = dict(zip((e.label for e, _ in missing), batch(self.jobs(missing))))
+        return [known[e.label] if e.label in known else fitted[e.label] for e, _ in chosen]
 
     def _full(self, ext: Extension) -> Calibration:
         return self.fit(*self.what, extension=combined([*self.held, ext]), **self.options)
