@@ -112,12 +112,15 @@ def held_out_rms(design: Design, takes: Sequence[np.ndarray], res: np.ndarray, w
         out = held & design.counted
         train_j, train_r = jac[~held], res[~held]
         gram, moment = train_j.T @ train_j, train_j.T @ train_r
+        out_j, out_r = jac[out], res[out]  # |r - J s|² = |r|² - 2 sᵀ(Jᵀr) + sᵀ(JᵀJ)s on the held-out rows
+        out_gram, out_moment, out_sq = out_j.T @ out_j, out_j.T @ out_r, np.sum(out_r**2, axis=0)
         for k, take in enumerate(takes):
             step = np.linalg.lstsq(gram[np.ix_(take, take)], moment[take], rcond=1e-12)[0]
-            err = res[out] - jac[np.ix_(out, take)] @ step
-            squares[k] += np.sum(err**2, axis=0)
+            cross = np.sum(step * out_moment[take], axis=0)
+            curve = np.sum(step * (out_gram[np.ix_(take, take)] @ step), axis=0)
+            squares[k] += out_sq - 2.0 * cross + curve
         entries += int(np.count_nonzero(out)) // min(width, 3)
-    return np.sqrt(squares / max(entries, 1))
+    return np.sqrt(np.maximum(squares, 0.0) / max(entries, 1))
 
 
 def _noise(lin: Linearised, design: Design, draws: int, rng: np.random.Generator) -> np.ndarray:
