@@ -175,6 +175,8 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--million", action="store_true", help="also the 10⁶ rows (minutes)")
     parser.add_argument("--markdown", type=Path, help="also write the table in Markdown")
     args = parser.parse_args(argv)
+    if args.baseline is not None and not (args.baseline / "pincal" / "__init__.py").is_file():
+        sys.exit(f"--baseline {args.baseline}: no pincal source tree there (give the folder holding pincal/)")
     if not figaroh_available():
         sys.exit("the anchor is FIGAROH's script: pip install figaroh==1.0.2 (or '.[bench]')")
     load = os.getloadavg()[0]

@@ -6,7 +6,8 @@ same matrix: 4.8 against 2.7 ms for 3,000 × 45, 68 against 26 ms for 30,000 × 
 this machine kind), and that QR is most of an iteration. This is the same method (Moré 1978:
 scaled variables, the Gauss-Newton step when it lowers the cost, else a damped one) with one
 LAPACK QR of ``[J r]`` per Jacobian; damped steps only need the small ``n × n`` triangle.
-Robust losses keep ``least_squares`` (trust-region reflective).
+The outlier screen's ``soft_l1`` refit is least squares on residuals that square to its cost
+(:func:`soft_l1_roots`); other robust losses keep ``least_squares`` (trust-region reflective).
 
 The damping follows the step's gain ratio ``ρ`` (actual over predicted fall of the cost; Nielsen
 1999, Madsen, Nielsen & Tingleff 2004 §3.1): after a step that lowers the cost it is multiplied
@@ -144,3 +145,27 @@ def levenberg_marquardt(
     return OptimizeResult(
         x=x, cost=cost, fun=res, nfev=nfev, njev=njev, status=status, success=status > 0, message=message
     )
+
+
+Vector = Callable[[np.ndarray], np.ndarray]
+
+
+def soft_l1_roots(residuals: Vector, jacobian: Vector, f_scale: float) -> tuple[Vector, Vector]:
+    """Residuals whose sum of squares is the ``soft_l1`` cost of ``residuals``, and their Jacobian.
+
+    ``soft_l1`` (as ``scipy.optimize.least_squares`` defines it, on every row) costs
+    ``f² ρ(r²/f²)`` a row, ``ρ(z) = 2(√(1+z) - 1) = 2z / (√(1+z) + 1)``; the rows ``r √(2 / (s + 1))``,
+    ``s = √(1 + r²/f²)``, square to it, and their derivative is ``√((s + 1) / 2) / s`` times
+    ``r``'s. Least squares on them is that robust fit (the same minimum as SciPy's trust-region
+    reflective, to the solvers' tolerances), without importing ``scipy.optimize`` (0.3 s).
+    """
+
+    def rooted(x: np.ndarray) -> np.ndarray:
+        r = residuals(x)
+        return r * np.sqrt(2.0 / (np.sqrt(1.0 + (r / f_scale) ** 2) + 1.0))
+
+    def rooted_jacobian(x: np.ndarray) -> np.ndarray:
+        root = np.sqrt(1.0 + (residuals(x) / f_scale) ** 2)
+        return jacobian(x) * (np.sqrt((root + 1.0) / 2.0) / root)[:, None]
+
+    return rooted, rooted_jacobian

@@ -35,7 +35,7 @@ from pincal.identify.evaluation import evaluate, marker_stats
 from pincal.identify.fixed_points import PointDistance, blind_jacobian, gauge_reasons, placed_distances
 from pincal.identify.identifiability import RCOND, Identifiability, analyse, check_rank, natural_scale
 from pincal.identify.kinds import check_options, get_kind
-from pincal.identify.lm import OptimizeResult, levenberg_marquardt
+from pincal.identify.lm import OptimizeResult, levenberg_marquardt, soft_l1_roots
 from pincal.identify.measurement import Measurement, held_markers, marker_setup
 from pincal.identify.measurements import Problem
 from pincal.identify.outliers import find_outliers
@@ -192,7 +192,10 @@ def solve(
         result = levenberg_marquardt(
             residuals, jacobian, theta[free], x_scale, max_nfev=MAX_EVALUATIONS, triangle=big
         )
-    else:  # a robust loss: SciPy's trust-region reflective, imported only then (start-up)
+    elif loss == "soft_l1" and len(problem.residuals(theta)) >= free.sum():  # the outlier screen's refit
+        rooted, rooted_jacobian = soft_l1_roots(residuals, jacobian, f_scale)
+        result = levenberg_marquardt(rooted, rooted_jacobian, theta[free], x_scale, max_nfev=MAX_EVALUATIONS)
+    else:  # another robust loss: SciPy's trust-region reflective, imported only then (start-up)
         from scipy.optimize import least_squares
 
         tight = dict.fromkeys(("xtol", "ftol", "gtol"), 1e-12)
