@@ -10,8 +10,9 @@
   serial one;
 - Levenberg-Marquardt finds SciPy's least-squares minimum, and follows a curved valley to it;
 - ``import pincal`` and ``pincal --help`` load neither NumPy nor Pinocchio; ``calibrate`` and
-  ``diagnose`` load neither ``scipy.optimize`` nor ``scipy.special`` (0.3 s of start-up) until a
-  robust loss or an F-test needs them.
+  ``diagnose`` load neither ``scipy.optimize`` nor ``scipy.special`` (0.3 s of start-up), their
+  outlier screen's robust refit included, until a robust loss is asked for (``--loss``);
+- the diagnosis' batches of worker jobs and the command's BLAS loaded with one thread.
 """
 
 from __future__ import annotations
@@ -129,6 +130,23 @@ def test_commands_load_no_scipy_optimize() -> None:
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+def test_a_default_calibration_with_its_outlier_screen_loads_no_scipy_optimize(tmp_path) -> None:
+    """The outlier screen's robust refit runs (a pose 5 mm off is left out) and SciPy's
+    optimisers stay unloaded: the refit is :func:`pincal.identify.lm.soft_l1_roots`'s."""
+    robot = pincal.load_robot("ur5")
+    _, fit, _ = pincal.simulate(robot, n_fit=40, n_test=0, seed=0)
+    fit.points[5] += 0.005
+    pincal.write_csv(tmp_path / "fit.csv", fit)
+    code = (
+        "import sys, io, contextlib, pincal.cli\n"
+        "with contextlib.redirect_stdout(io.StringIO()) as out:\n"
+        f"    pincal.cli.main(['calibrate', 'ur5', {str(tmp_path / 'fit.csv')!r}, '--extend', 'none'])\n"
+        "print('excluded' if 'left out' in out.getvalue() else 'kept', 'scipy.optimize' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["excluded", "False"]
 
 
 def test_cli_threads_option_is_checked() -> None:
