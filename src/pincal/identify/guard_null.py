@@ -105,9 +105,15 @@ def null_threshold(
     sigma = float(np.sqrt(res @ res / free))
 
     def draw(k: int) -> float:  # each draw its own seed: the same answer on one core or two
-        return _null_z(setup, plan, sigma, np.random.default_rng([seed, k]), chosen)
+        return _null_z(setup, plan, sigma, np.random.default_rng([seed, k]))
 
-    zs = np.sort(parallel_map(draw, draws))
+    if chosen is None:
+        zs = np.sort(parallel_map(draw, draws))
+    else:  # the same columns in every draw: their leave-one-out algebra once, for all draws
+        eps = [
+            noise_rows(setup, len(plan.jac), sigma, np.random.default_rng([seed, k])) for k in range(draws)
+        ]
+        zs = np.sort(_given_zs(setup, plan, chosen, np.column_stack(eps)))
     rank = max(1, int(ALPHA * (draws + 1)))
     return NullThreshold(float(zs[-rank]), draws, rank, sigma * 1e3)
 
@@ -122,16 +128,18 @@ def noise_rows(setup: Setup, n_rows: int, sigma: float, rng: np.random.Generator
     return problem.measurement.measure.noise_rows(problem, n_rows, eps[:, :, None])[:, 0]
 
 
-def _null_z(
-    setup: Setup, plan: Design, sigma: float, rng: np.random.Generator, given: list[int] | None = None
-) -> float:
-    """The guard's ``z`` on one draw of pure noise of the set the selection chooses (or of the
-    ``given`` columns)."""
+def _null_z(setup: Setup, plan: Design, sigma: float, rng: np.random.Generator) -> float:
+    """The guard's ``z`` of the set the selection chooses on one draw of pure noise."""
     eps = noise_rows(setup, len(plan.jac), sigma, rng)
-    chosen = given if given is not None else _selected(plan, eps)
+    return float(_given_zs(setup, plan, _selected(plan, eps), eps[:, None])[0])
+
+
+def _given_zs(setup: Setup, plan: Design, chosen: list[int], eps: np.ndarray) -> np.ndarray:
+    """The guard's ``z`` of the fit of the columns ``chosen`` on each draw of pure noise ``eps``
+    (R, D): (D,)."""
     fit = press(plan.jac[:, chosen], plan.basis, setup.prior_weight, eps, plan.groups)
     base = press(plan.jac[:, :0], plan.basis, 0.0, eps, plan.groups)
-    return z_of(base - fit)
+    return np.array([z_of(base[:, k] - fit[:, k]) for k in range(eps.shape[1])])
 
 
 def _selected(plan: Design, eps: np.ndarray) -> list[int]:
@@ -144,19 +152,22 @@ def press(
     geometric: np.ndarray, basis: np.ndarray, weight: float, res: np.ndarray, groups: list[np.ndarray]
 ) -> np.ndarray:
     """Each group's squared leave-one-out error [m²] of the linear fit of ``res`` on the pulled
-    columns ``geometric`` (natural units, pull ``weight``) and the free columns ``basis``."""
+    columns ``geometric`` (natural units, pull ``weight``) and the free columns ``basis``: (G,),
+    or (G, D) for ``D`` residual vectors at once (``res`` (R, D): the fit and its hat matrices
+    are shared by them)."""
     jac = np.column_stack([geometric, basis])
     pen = np.r_[np.ones(geometric.shape[1]), np.zeros(basis.shape[1])]
     spread = np.linalg.lstsq(jac.T @ jac + weight**2 * np.diag(pen), jac.T, rcond=None)[0].T
-    fitted = res - jac @ (spread.T @ res)
-    out = np.empty(len(groups))
+    many = res if res.ndim == 2 else res[:, None]
+    fitted = many - jac @ (spread.T @ many)
+    out = np.empty((len(groups), many.shape[1]))
     for size in {len(g) for g in groups}:
         which = [k for k, g in enumerate(groups) if len(g) == size]
         rows = np.array([groups[k] for k in which])  # (G, s)
         hat = jac[rows] @ spread[rows].transpose(0, 2, 1)  # (G, s, s)
-        err = np.linalg.pinv(np.eye(size) - hat) @ fitted[rows][:, :, None]
-        out[which] = np.sum(err[:, :, 0] ** 2, axis=1)
-    return out
+        err = np.linalg.pinv(np.eye(size) - hat) @ fitted[rows]  # (G, s, D)
+        out[which] = np.sum(err**2, axis=1)
+    return out if res.ndim == 2 else out[:, 0]
 
 
 def z_of(gain: np.ndarray) -> float:
