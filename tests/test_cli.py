@@ -462,7 +462,11 @@ def test_demo(capsys: pytest.CaptureFixture[str]) -> None:
     # alone with every parameter, and with its sidecar it beats both
     assert re.search(r"the URDF with its sidecar \(\+ \d causes?\)", run.out)
     assert "joint_compliance:joint3" in run.out
-    assert float(gain.group(1)) > float(gain.group(2)) >= 3.0
+    assert float(gain.group(1)) > max(3.0, float(gain.group(2)))
+    # with every parameter the guard may export the nominal geometry in a fold (the fit exported in
+    # all of them is test_papers' 3.4x): the demo then says in how many it kept the fit
+    if float(gain.group(2)) < 3.0:
+        assert re.search(r"the guard kept the fit in \d of 7 folds", run.out)
     means = {
         label.strip(): float(mean)
         for label, mean in re.findall(r"^ {3}(.{54}) +([0-9.]+) +[0-9.]+$", run.out, re.MULTILINE)
