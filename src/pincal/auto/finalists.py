@@ -13,7 +13,7 @@ from pincal.auto.screening import Screen
 from pincal.identify.calibration import Calibration
 from pincal.identify.kfold import CrossValidation, Fit, FoldRuns
 from pincal.identify.warm import WarmStart
-from pincal.kinematics.effects import Extension, combined
+from pincal.kinematics.effects import AnyEffect, Extension, combined
 from pincal.threads import parallel_map
 
 #: ``quick`` diagnoses (``calibrate --extend auto``) judge by the nonlinear cross-validation only
@@ -70,7 +70,11 @@ class Finalists:
         return [known[e.label] if e.label in known else fitted[e.label] for e, _ in chosen]
 
     def _full(self, ext: Extension) -> Calibration:
-        return self.fit(*self.what, extension=combined([*self.held, ext]), **self.options)
+        return self.fit(*self.what, extension=self._with(ext), **self.options)
+
+    def _with(self, ext: Extension) -> AnyEffect | None:
+        """The effects held and the candidate ``ext``."""
+        return combined([*self.held, ext])
 
     def cross_validated(
         self, fulls: list[Calibration], chosen: list[tuple[Extension, Screen]], folds: int, seed: int
@@ -92,7 +96,7 @@ class Finalists:
                 self.what,
                 folds,
                 seed,
-                {**self.options, "extension": combined([*self.held, ext]), "start": WarmStart.of(full)},
+                {**self.options, "extension": self._with(ext), "start": WarmStart.of(full)},
             )
             for ext, _, full in kept
         ]

@@ -92,18 +92,15 @@ def judge(
     return Guard(_rms_mm(fit), _rms_mm(base), z, z_min, reliable or forced, forced, how)
 
 
-def threshold(
-    setup: Setup, nominal: np.ndarray, selected: bool, free: np.ndarray | None = None
-) -> tuple[float, str]:
+def threshold(setup: Setup, nominal: np.ndarray, selected: bool, free: np.ndarray) -> tuple[float, str]:
     """The guard's threshold [standard errors] and how it was set: :data:`Z_MIN`, or when higher
     the null quantile of the guard's ``z`` on pure noise
     (:func:`pincal.identify.guard_null.null_threshold`): after a forward selection, of selection
     + guard; for distance data with given parameters (``free``, a mask), of the guard alone, as
     pairs that share their poses' noise spread ``z`` wider than a normal statistic."""
-    pairs = setup.problem.measurement.measure.by_pairs
-    if not selected and not (pairs and free is not None):
+    given = free if setup.problem.measurement.measure.by_pairs and not selected else None
+    if not selected and given is None:
         return Z_MIN, Guard.threshold_from
-    given = None if selected or free is None else free
     draws = NULL_DRAWS if given is None else GIVEN_DRAWS
     null = null_threshold(setup, nominal, draws, given=given)
     what = "the same forward selection" if given is None else "the fit of the given parameters"

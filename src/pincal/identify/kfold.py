@@ -150,8 +150,7 @@ class FoldRuns:
             raise DataError(
                 f"cross-validation needs between 2 and {len(data)} folds (one per pose), got {folds}"
             )
-        parts = tuple(pose_folds(data, folds, seed))
-        return cls(fit, (what[0], data, what[2], what[3]), folds, parts, dict(options))
+        return cls(fit, tuple(what), folds, tuple(pose_folds(data, folds, seed)), dict(options))
 
     def fold(self, k: int) -> tuple[Calibration, list[np.ndarray]]:
         """The fit without fold ``k`` and its held-out errors (:func:`held_out_errors`)."""
