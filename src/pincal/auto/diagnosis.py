@@ -25,8 +25,8 @@ from typing import Any
 import numpy as np
 
 from pincal.auto.finalists import Finalists, batch, worth_judging
-from pincal.auto.screen_null import ALPHA, ScreenNull, draws_for, screen_null
-from pincal.auto.screening import Linearised, Screen
+from pincal.auto.screen_null import ALPHA, draws_for, p_values, screen_null
+from pincal.auto.screening import Linearised
 from pincal.data.dataset import Dataset
 from pincal.identify.calibration import Calibration
 from pincal.identify.kfold import Fit, FoldRuns
@@ -125,6 +125,8 @@ class Diagnosis:
         given: the effects the baseline already held (a cause sought after others), or None.
         step: the causes sought so far, this one included (the test's level is ``ALPHA / step``).
         null_draws: draws of noise through the screen (0: none drawn).
+        baseline_by: how ``baseline_cv_rms_mm`` was cross-validated: ``nonlinear`` (refits), or
+            ``linearised`` when no candidate's p-value, known before any refit, could name one.
     """
 
     baseline: Calibration = field(repr=False)
@@ -137,6 +139,7 @@ class Diagnosis:
     given: AnyEffect | None = field(default=None, repr=False)
     step: int = 1
     null_draws: int = 0
+    baseline_by: str = "nonlinear"
 
     @property
     def extended(self) -> Calibration:
@@ -180,7 +183,8 @@ class Diagnosis:
                 if self.candidates
                 else "no effect the data can tell from the geometry"
             )
-            return f"no listed effect pays on held-out poses: cross-validated RMS {b:.3f} mm ({best})"
+            by = ", linearised" if self.baseline_by == "linearised" else ""
+            return f"no listed effect pays on held-out poses: cross-validated RMS {b:.3f} mm ({best}{by})"
         ext, p = self.cause.extension, self.cause.params
         unit = ext.units[0]
         if ext.effect == "joint_compliance":
@@ -218,7 +222,11 @@ class Diagnosis:
         """The JSON of ``contracts.md``."""
         cause = self.cause.extension if self.cause else None
         return {
-            "baseline": {"model": self.baseline.model.kind, "cv_rms_mm": self.baseline_cv_rms_mm},
+            "baseline": {
+                "model": self.baseline.model.kind,
+                "cv_rms_mm": self.baseline_cv_rms_mm,
+                "by": self.baseline_by,
+            },
             "cause": {
                 "effect": cause.effect if cause else "none",
                 "joint": cause.joint if cause else None,
@@ -299,16 +307,19 @@ def diagnose_with(
             progress(k + 1, total, ext.label)
     screens.sort(key=lambda item: item[1].cv_rms_mm)
     null = screen_null(lin, [ext for ext, _ in screens], draws_for(step), seed)
-    p_of = _p_values(lin, null)
+    p_of = p_values(lin, null)
     options["partial"] = True
     top = screens[: min(FINALISTS, len(screens))]
     fits = Finalists(fit, what, [*held], options)
     level = ALPHA / step
     likely = worth_judging(top, lin.screen().cv_rms_mm, p_of, level) if quick else top  # started early
-    base_jobs = [] if base_runs is None else base_runs.jobs()
+    can_name = not quick or any(p_of(s) < level for _, s in top)  # else no refit changes the answer
+    base_jobs = [] if base_runs is None or not can_name else base_runs.jobs()
     first = batch([*base_jobs, *fits.jobs(likely)])  # the baseline's folds beside the fits
     if base_runs is not None:
-        base_rms = base_runs.pooled(first[: len(base_jobs)]).after.rms_mm
+        base_rms = (
+            base_runs.pooled(first[: len(base_jobs)]).after.rms_mm if can_name else lin.screen().cv_rms_mm
+        )
     finals = worth_judging(top, base_rms, p_of, level) if quick else top
     fulls = fits.on_all_poses(finals, dict(zip((e.label for e, _ in likely), first[len(base_jobs) :])))
     for k, (ext, _) in enumerate(finals):
@@ -326,15 +337,5 @@ def diagnose_with(
     cause = next((c for c in paying if c.implausible is None), None)
     draws = 0 if null is None else null.draws
     judged = tuple(finalists + screened)
-    return Diagnosis(base, base_rms, cause, judged, folds, data.q, rejected, given, step, draws)
-
-
-def _p_values(lin: Linearised, null: ScreenNull | None) -> Callable[[Screen], float]:
-    """A screened candidate's family-wise p-value: of its linearised gain over the baseline's
-    linearised cross-validated RMS, under ``null`` (1 without a null)."""
-    base = lin.screen().cv_rms_mm
-
-    def p_value(screen: Screen) -> float:
-        return 1.0 if null is None else null.p_value(base / screen.cv_rms_mm)
-
-    return p_value
+    by = "nonlinear" if can_name or base_runs is None else "linearised"
+    return Diagnosis(base, base_rms, cause, judged, folds, data.q, rejected, given, step, draws, by)

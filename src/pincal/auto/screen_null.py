@@ -26,12 +26,12 @@ poses chance gains are smaller, so the subset's null is conservative.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from pincal.auto.screening import Design, Linearised
+from pincal.auto.screening import Design, Linearised, Screen
 from pincal.kinematics.effects import AnyEffect
 
 #: Family-wise level of the diagnosis' test, per cause sought.
@@ -97,6 +97,17 @@ def screen_null(lin: Linearised, pool: Sequence[AnyEffect], draws: int, seed: in
     ]
     rms = held_out_rms(design, takes, noise, lin.kind.width)
     return ScreenNull(np.max(rms[0] / rms[1:], axis=0), len(pool))
+
+
+def p_values(lin: Linearised, null: ScreenNull | None) -> Callable[[Screen], float]:
+    """A screened candidate's family-wise p-value: of its linearised gain over the baseline's
+    linearised cross-validated RMS, under ``null`` (1 without a null)."""
+    base = lin.screen().cv_rms_mm
+
+    def p_value(screen: Screen) -> float:
+        return 1.0 if null is None else null.p_value(base / screen.cv_rms_mm)
+
+    return p_value
 
 
 def held_out_rms(design: Design, takes: Sequence[np.ndarray], res: np.ndarray, width: int) -> np.ndarray:

@@ -7,7 +7,7 @@ import numpy as np
 from pincal.data.dataset import Dataset
 from pincal.identify.measurements import Problem
 
-__all__ = ["fold_indices", "held_out_rows", "pose_folds"]
+__all__ = ["fold_indices", "held_out_rows", "held_out_squares", "pose_folds"]
 
 
 def fold_indices(n: int, folds: int, seed: int = 0) -> list[np.ndarray]:
@@ -43,3 +43,32 @@ def held_out_rows(problem: Problem, folds: int | None, seed: int) -> list[np.nda
     order = np.argsort(of_row, kind="stable")
     bounds = np.searchsorted(of_row[order], np.arange(len(held) + 1))
     return [order[a:b] for a, b in zip(bounds[:-1], bounds[1:])]
+
+
+def held_out_squares(
+    jac: np.ndarray, spread: np.ndarray, fitted: np.ndarray, groups: list[np.ndarray]
+) -> np.ndarray:
+    """Each group's squared leave-group-out error of a linear fit, in closed form: the norm of
+    ``(I - H_gg)⁺ r_g`` over its rows ``g``, ``H = J · spreadᵀ`` the fit's hat matrix.
+
+    Groups of one size go through one batched solve (a pose's rows: every group alike).
+
+    Args:
+        jac: the fit's Jacobian (R, k).
+        spread: ``J (JᵀJ + Λ)⁻¹`` (R, k) for the fit's penalty ``Λ`` (none, or the pull's).
+        fitted: the fit's residuals (R,), or (R, D) for ``D`` residual vectors sharing the fit.
+        groups: the residual rows of each held-out group.
+
+    Returns:
+        (G,) or (G, D) squared errors [the residuals' unit squared].
+    """
+    many = fitted if fitted.ndim == 2 else fitted[:, None]
+    out = np.empty((len(groups), many.shape[1]))
+    sizes = np.array([len(g) for g in groups])
+    for size in np.unique(sizes):
+        which = np.flatnonzero(sizes == size)
+        rows = np.array([groups[k] for k in which]).reshape(len(which), int(size))  # (G, s)
+        hat = jac[rows] @ spread[rows].transpose(0, 2, 1)  # (G, s, s)
+        err = np.linalg.pinv(np.eye(int(size)) - hat) @ many[rows]  # (G, s, D)
+        out[which] = np.sum(err**2, axis=1)
+    return out if fitted.ndim == 2 else out[:, 0]

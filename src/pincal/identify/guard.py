@@ -29,7 +29,7 @@ import numpy as np
 from pincal.data.dataset import Dataset
 from pincal.identify.calibration import Calibration
 from pincal.identify.extrapolation import check
-from pincal.identify.folds import held_out_rows
+from pincal.identify.folds import held_out_rows, held_out_squares
 from pincal.identify.guard_null import GIVEN_DRAWS, NULL_DRAWS, NULL_MAX_POSES, null_threshold
 from pincal.identify.identifiability import Identifiability
 from pincal.identify.lm import OptimizeResult
@@ -52,12 +52,7 @@ def loo_squared_errors(setup: Setup, theta: np.ndarray, free: np.ndarray) -> np.
     pen = pulled(setup, free).astype(float)
     gram = jac.T @ jac + setup.prior_weight**2 * np.diag(pen)
     spread = np.linalg.lstsq(gram, jac.T, rcond=None)[0].T  # J (JᵀJ + w²P)⁻¹, (rows, k)
-    out = []
-    for rows in held_out_rows(problem, None, 0):
-        hat = jac[rows] @ spread[rows].T
-        err = np.linalg.lstsq(np.eye(len(rows)) - hat, res[rows], rcond=None)[0]
-        out.append(float(err @ err))
-    return np.array(out)
+    return held_out_squares(jac, spread, res, held_out_rows(problem, None, 0))
 
 
 def judge(

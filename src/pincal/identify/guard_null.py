@@ -34,6 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pincal.identify.folds import held_out_squares
 from pincal.identify.forward_selection import KEEP_ALL, MIN_GAIN, Design, choose_step, design, walk
 from pincal.identify.solver import Setup
 from pincal.threads import parallel_map
@@ -159,16 +160,8 @@ def press(
     jac = np.column_stack([geometric, basis])
     pen = np.r_[np.ones(geometric.shape[1]), np.zeros(basis.shape[1])]
     spread = np.linalg.lstsq(jac.T @ jac + weight**2 * np.diag(pen), jac.T, rcond=None)[0].T
-    many = res if res.ndim == 2 else res[:, None]
-    fitted = many - jac @ (spread.T @ many)
-    out = np.empty((len(groups), many.shape[1]))
-    for size in {len(g) for g in groups}:
-        which = [k for k, g in enumerate(groups) if len(g) == size]
-        rows = np.array([groups[k] for k in which])  # (G, s)
-        hat = jac[rows] @ spread[rows].transpose(0, 2, 1)  # (G, s, s)
-        err = np.linalg.pinv(np.eye(size) - hat) @ fitted[rows]  # (G, s, D)
-        out[which] = np.sum(err**2, axis=1)
-    return out if res.ndim == 2 else out[:, 0]
+    fitted = res - jac @ (spread.T @ res)
+    return held_out_squares(jac, spread, fitted, groups)
 
 
 def z_of(gain: np.ndarray) -> float:
