@@ -30,8 +30,8 @@ from pincal.auto.choice import ModelChoice
 from pincal.auto.crossval import cross_validate
 from pincal.auto.screening import Linearised
 from pincal.identify.solver import set_up
-from pincal.kinematics.chain import jlog3, log3
 from pincal.kinematics.effects import Extension
+from pincal.kinematics.so3 import jlog3, log3
 from pincal.simulation.truth import hide_effect
 from pincal.threads import blas_threads, parallel_map, thread_count, worker_count
 

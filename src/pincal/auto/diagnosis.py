@@ -183,8 +183,8 @@ class Diagnosis:
                 if self.candidates
                 else "no effect the data can tell from the geometry"
             )
-            by = ", linearised" if self.baseline_by == "linearised" else ""
-            return f"no listed effect pays on held-out poses: cross-validated RMS {b:.3f} mm ({best}{by})"
+            by = " (linearised)" if self.baseline_by == "linearised" else ""
+            return f"no listed effect pays on held-out poses: cross-validated RMS {b:.3f} mm{by} ({best})"
         ext, p = self.cause.extension, self.cause.params
         unit = ext.units[0]
         if ext.effect == "joint_compliance":
@@ -313,7 +313,7 @@ def diagnose_with(
     fits = Finalists(fit, what, [*held], options)
     level = ALPHA / step
     likely = worth_judging(top, lin.screen().cv_rms_mm, p_of, level) if quick else top  # started early
-    can_name = not quick or any(p_of(s) < level for _, s in top)  # else no refit changes the answer
+    can_name = not quick or any(p_of(s) < level for _, s in top) or not lin.folds_fit()  # else no refit
     base_jobs = [] if base_runs is None or not can_name else base_runs.jobs()
     first = batch([*base_jobs, *fits.jobs(likely)])  # the baseline's folds beside the fits
     if base_runs is not None:

@@ -185,6 +185,14 @@ class Linearised:
             sums, columns, _ = self._pass([extension])
         return sums, np.concatenate([np.arange(n_base), columns[extension.label], [-1]])
 
+    def folds_fit(self) -> bool:
+        """Whether every fold leaves more residual rows than the baseline has unknowns, so that
+        its refits would run (else they say how many poses the cross-validation needs)."""
+        if self.design is None:  # large data: folds of thousands of poses
+            return True
+        trained = (np.count_nonzero(~self.design.held(k)) for k in range(self.n_folds))
+        return all(n > len(self.free) for n in trained)
+
     def screen(self, extension: AnyEffect | None = None) -> Screen:
         """The linearised cross-validation and all-row fit, with ``extension``'s columns or none."""
         sums, take = self._sums_of(extension)

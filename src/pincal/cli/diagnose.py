@@ -69,9 +69,8 @@ def run(args: argparse.Namespace) -> int:
     if choice is None or choice.diagnosis is None:
         raise IdentifiabilityError(f"the diagnosis did not run: {choice.skipped if choice else 'no choice'}")
     result = choice.diagnosis
-    print(
-        f"baseline {args.model}: cross-validated RMS {result.baseline_cv_rms_mm:.4f} mm ({args.folds} folds)"
-    )
+    how = f"{args.folds} folds" + (", linearised" if result.baseline_by == "linearised" else "")
+    print(f"baseline {args.model}: cross-validated RMS {result.baseline_cv_rms_mm:.4f} mm ({how})")
     for cand in result.candidates[:5]:
         chance = _p_text(cand.p_value, result.null_draws)
         print(f"  {cand.extension.label:42s} CV RMS {cand.cv_rms_mm:.4f} mm  {chance}")

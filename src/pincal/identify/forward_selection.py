@@ -13,10 +13,9 @@ Every candidate is scored in closed form on the problem linearised at the regist
 with ``H`` the hat matrix of the current columns and ``e`` the fit's residual, a group of rows
 ``g`` predicted by a fit on the other rows leaves ``(I - H_gg)⁻¹ e_g`` (PRESS); adding a column
 ``u`` (orthonormalised) changes ``H`` by ``u uᵀ`` and ``e`` by ``-u uᵀe``. A group is a pose
-(leave-one-out) or a fold; for distance data, the rows of every pair with a pose in it.
-:func:`pincal.auto.selection.cross_validate_selection` judges the whole procedure by K-fold
-cross-validation, the selection re-run on each fold's fitted poses: the chosen step's score is
-biased low by the choice itself, that one is not.
+(leave-one-out) or a fold; for distance data, the rows of every pair with a pose in it. A tie
+(scores within :data:`TIE`) goes to the first in the model's order. The chosen step's score is
+biased low: :func:`pincal.auto.selection.cross_validate_selection` re-runs the selection per fold.
 """
 
 from __future__ import annotations
@@ -123,6 +122,7 @@ class Selection:
 
 #: A group whose ``I - H_gg`` has an eigenvalue below this is determined by the fit alone.
 SINGULAR = 1e-10
+TIE = 1e-9  #: Relative margin within which two candidates' scores tie.
 
 
 class _LeaveOut:
@@ -271,7 +271,7 @@ def walk(
         u = np.where(valid, cols / np.where(valid, norms, 1.0), 0.0)
         sse, fit = leave_out.scores(res, u)
         cv = np.where(valid, rms(sse, plan.n_units), np.inf)
-        best = int(np.argmin(cv))
+        best = int(np.flatnonzero(cv <= np.min(cv) * (1.0 + TIE))[0])  # a tie: the first candidate
         if not np.isfinite(cv[best]):
             break
         added.append(candidates[best])

@@ -24,7 +24,7 @@ from pincal.data.dataset import Dataset
 from pincal.errors import DataError
 from pincal.identify.fixed_points import points_rows
 from pincal.identify.rows import ProblemRows
-from pincal.kinematics.chain import jlog3, log3
+from pincal.kinematics.so3 import jlog3, log3
 
 
 def pair_directions(points: np.ndarray, pairs: np.ndarray) -> np.ndarray:

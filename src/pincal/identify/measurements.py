@@ -34,7 +34,7 @@ from pincal.data.pairs import all_pairs
 from pincal.identify import chunked
 from pincal.identify.fixed_points import point_index, point_means
 from pincal.identify.measurement import Measurement, check_markers, marker_points, unpack
-from pincal.kinematics.chain import Frames, forward, stacked_dot, twist_columns
+from pincal.kinematics.chain import Frames, forward, stacked_dot, summed_columns, twist_columns
 from pincal.kinematics.effects import AnyEffect
 from pincal.kinematics.models import Model
 
@@ -226,12 +226,8 @@ class Problem:
                 return v, None
             return v, stacked_dot(to_log @ k_rot, zeta[3:])
 
-        def add(
-            k_rot: np.ndarray, k_pos: np.ndarray, zeta: np.ndarray, where: np.ndarray, mask: Any = None
-        ) -> None:
+        def add(k_rot: np.ndarray, k_pos: np.ndarray, zeta: np.ndarray, where: np.ndarray) -> None:
             v, w = columns(k_rot, k_pos, zeta)
-            if mask is not None:  # a tree: the position moves only the rows of its branches
-                v, w = v * mask, None if w is None else w * mask
             at: slice | np.ndarray = where  # a slice when it can be: fancy indexing costs more
             if where[-1] - where[0] == len(where) - 1:
                 at = slice(int(where[0]), int(where[-1]) + 1)
@@ -242,11 +238,10 @@ class Problem:
         geo = np.flatnonzero(cols < n_geo)
         if geo.size:
             twists = self.model.twists(theta[:n_geo])[:, :, cols[geo]]
-            for k in range(twists.shape[0]):
-                acting = np.flatnonzero(np.any(twists[k] != 0.0, axis=0))
-                if acting.size:
-                    k_rot, k_pos = frames.rotations[k], frames.translations[k]
-                    add(k_rot, k_pos, twists[k][:, acting], geo[acting], frames.acting(k))
+            v, w = summed_columns(frames, twists, pos, to_log=to_log)
+            jac_v[:, :, geo] = v
+            if w is not None:
+                jac_w[:, :, geo] = w
         ext = np.flatnonzero((cols >= n_geo) & (cols < self.n_model))
         joints = self.param_joints[cols[ext] - n_geo]
         axes = self.model.chain(theta[:n_geo]).axes if ext.size else np.zeros((0, 6))  # model's joint frames

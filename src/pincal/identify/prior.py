@@ -89,7 +89,8 @@ def log_evidence(setup: Setup, theta: np.ndarray, free: np.ndarray) -> float:
     delta = (theta[geometric] - problem.initial_theta()[geometric]) / setup.scale[geometric]
     total = float(res @ res + weight**2 * delta @ delta)
     normal = jac.T @ jac + weight**2 * np.diag(pen.astype(float))
-    return _score(counted_rows(problem, len(res)), int(pen.sum()), int(free.sum()), total, weight, normal)
+    logdet = float(np.linalg.slogdet(normal)[1])
+    return _score(counted_rows(problem, len(res)), int(pen.sum()), int(free.sum()), total, weight, logdet)
 
 
 def choose_weight(
@@ -140,21 +141,58 @@ def evidence_curve(
     delta = np.zeros(len(pen))
     delta[pen > 0] = (theta[geometric] - problem.initial_theta()[geometric]) / setup.scale[geometric]
     n_pulled, n_rows = int(pen.sum()), counted_rows(problem, n_rows)
+    steps = _ridge_steps(gram, grad, pen > 0, delta, np.asarray(weights, dtype=float))
     out = []
-    for weight in weights:
-        normal = gram + weight**2 * np.diag(pen)
-        step = -np.linalg.lstsq(normal, grad + weight**2 * pen * delta, rcond=None)[0]
+    for weight, (step, logdet) in zip(weights, steps):
         held = pen * (delta + step)
         moved = rr + 2.0 * float(step @ grad) + float(step @ gram @ step)  # |r + J step|²
         total = moved + weight**2 * float(held @ held)
-        out.append(_score(n_rows, n_pulled, len(pen), total, weight, normal))
+        out.append(_score(n_rows, n_pulled, len(pen), total, weight, logdet))
     return out
 
 
-def _score(n: int, n_pulled: int, n_free: int, total: float, weight: float, normal: np.ndarray) -> float:
+def _ridge_steps(
+    gram: np.ndarray, grad: np.ndarray, pen: np.ndarray, delta: np.ndarray, weights: np.ndarray
+) -> list[tuple[np.ndarray, float]]:
+    """For each weight ``w``: the Gauss-Newton step of the pulled problem, ``-(G + w²P)⁻¹ (g + w² P δ)``,
+    and ``log det(G + w²P)``, ``P`` the mask ``pen``.
+
+    One eigendecomposition serves every weight: with the unpulled unknowns ``b`` eliminated
+    (``S = G_aa - G_ab G_bb⁻¹ G_ba`` = ``V Λ Vᵀ``), ``det(G + w²P) = det(G_bb) Π (λ + w²)`` and the
+    step's pulled part is ``-V (Λ + w²)⁻¹ Vᵀ (g_a - G_ab G_bb⁻¹ g_b + w² δ_a)``. When ``G_bb`` is
+    singular, each weight is solved on its own (least squares).
+    """
+    a, b = np.flatnonzero(pen), np.flatnonzero(~pen)
+    try:
+        chol = np.linalg.cholesky(gram[np.ix_(b, b)]) if b.size else np.zeros((0, 0))
+    except np.linalg.LinAlgError:
+        return [_ridge_step(gram, grad, pen, delta, w) for w in weights]
+    cross = gram[np.ix_(a, b)]
+    against = np.linalg.solve(chol.T, np.linalg.solve(chol, np.column_stack([cross.T, grad[b]])))
+    through, z = against[:, :-1], against[:, -1]  # G_bb⁻¹ G_ba and G_bb⁻¹ g_b
+    lam, vec = np.linalg.eigh(gram[np.ix_(a, a)] - cross @ through)
+    sq = weights**2
+    coef = (vec.T @ (grad[a] - cross @ z))[:, None] + (vec.T @ delta[a])[:, None] * sq[None, :]
+    step_a = -vec @ (coef / (lam[:, None] + sq[None, :]))  # (a, weights)
+    steps = np.zeros((len(grad), len(weights)))
+    steps[a], steps[b] = step_a, -z[:, None] - through @ step_a
+    base = 2.0 * float(np.sum(np.log(np.diag(chol))))
+    logdets = base + np.sum(np.log(lam[:, None] + sq[None, :]), axis=0)
+    return [(steps[:, k], float(logdets[k])) for k in range(len(weights))]
+
+
+def _ridge_step(
+    gram: np.ndarray, grad: np.ndarray, pen: np.ndarray, delta: np.ndarray, weight: float
+) -> tuple[np.ndarray, float]:
+    """:func:`_ridge_steps` for one weight, by least squares (any ``G``)."""
+    normal = gram + weight**2 * np.diag(pen.astype(float))
+    step = -np.linalg.lstsq(normal, grad + weight**2 * pen * delta, rcond=None)[0]
+    return step, float(np.linalg.slogdet(normal)[1])
+
+
+def _score(n: int, n_pulled: int, n_free: int, total: float, weight: float, logdet: float) -> float:
     """The module's formula: ``n`` residuals, ``n_free`` unknowns of which ``n_pulled`` pulled,
-    ``S = total`` [m²], the weight, and ``JᵀJ + w² P``."""
-    logdet = np.linalg.slogdet(normal)[1]
+    ``S = total`` [m²], the weight, and ``log det(JᵀJ + w² P)``."""
     return float(-(n + n_pulled - n_free) / 2 * np.log(total) + n_pulled * np.log(weight) - logdet / 2)
 
 

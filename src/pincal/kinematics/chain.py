@@ -243,6 +243,50 @@ def twist_columns(
     return v, stacked_dot(rot, zeta[3:]) if rotation else None
 
 
+def summed_columns(
+    frames: Frames,
+    twists: np.ndarray,
+    point: np.ndarray,
+    rotation: bool = False,
+    to_log: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """Columns of parameters that perturb chain positions on their right, summed over positions.
+
+    Every position's ``[R | -[point - p]× R]`` (N, 3, 6) is laid side by side, and one matrix
+    product with the stacked twists gives all columns: the same arithmetic as
+    :func:`twist_columns` per position, without a NumPy call per position and parameter.
+
+    Args:
+        frames: output of :func:`forward`; a tree's positions move only the rows of their branch.
+        twists: (K, 6, c) local twist of each of ``c`` parameters at each of the first ``K``
+            positions (zero where a parameter does not act).
+        point: the moved point (N, 3) [m], in the frames' axes.
+        rotation: also return the angular velocity.
+        to_log: (N, 3, 3) map applied to the angular velocity (implies ``rotation``).
+
+    Returns:
+        The point's velocity (N, 3, c) [m/unit] and the (mapped) angular velocity (N, 3, c)
+        [rad/unit], or None unless asked.
+    """
+    n, c = len(point), twists.shape[2]
+    at = np.flatnonzero(np.any(twists != 0.0, axis=(1, 2)))
+    rotation = rotation or to_log is not None
+    if at.size == 0:
+        return np.zeros((n, 3, c)), np.zeros((n, 3, c)) if rotation else None
+    rot = frames.rotations[at]  # (K, N, 3, 3)
+    if frames.reach is not None:  # a tree: the position moves only its branch's rows
+        rot = rot * frames.reach[at][:, :, None, None]
+    lever = point[None] - frames.translations[at]  # (K, N, 3)
+    arm = np.swapaxes(np.cross(lever[:, :, None, :], np.swapaxes(rot, 2, 3)), 2, 3)  # [lever]× R
+    side = np.concatenate([rot, -arm], axis=3).transpose(1, 2, 0, 3).reshape(3 * n, 6 * len(at))
+    v = (side @ twists[at].reshape(6 * len(at), c)).reshape(n, 3, c)
+    if not rotation:
+        return v, None
+    turns = rot.transpose(1, 2, 0, 3).reshape(3 * n, 3 * len(at))
+    w = (turns @ twists[at, 3:].reshape(3 * len(at), c)).reshape(n, 3, c)
+    return v, w if to_log is None else to_log @ w
+
+
 def tip_jacobian(frames: Frames, twists: np.ndarray, point: np.ndarray | None = None) -> np.ndarray:
     """Tip Jacobian of right-perturbations given at chain positions.
 
@@ -256,15 +300,8 @@ def tip_jacobian(frames: Frames, twists: np.ndarray, point: np.ndarray | None = 
         (N, 6, p) LOCAL_WORLD_ALIGNED Jacobian of the tip: rows (v [m/unit], ω [rad/unit]).
     """
     point = frames.tip_translation if point is None else point
-    jac = np.zeros((len(point), 6, twists.shape[2]))
-    for k in range(twists.shape[0]):
-        cols = np.flatnonzero(np.any(twists[k] != 0.0, axis=0))
-        if cols.size == 0:
-            continue
-        v, w = twist_columns(frames.rotations[k], frames.translations[k], twists[k][:, cols], point)
-        jac[:, :3, cols] += v
-        jac[:, 3:, cols] += w  # type: ignore[arg-type]
-    return jac
+    v, w = summed_columns(frames, twists, point, rotation=True)
+    return np.concatenate([v, w], axis=1)
 
 
 def joint_jacobian(chain: Chain, frames: Frames) -> np.ndarray:
@@ -304,28 +341,3 @@ def right_twists(
     for param, i, zeta in local:
         out[:, param] += suffixes[i].actInv(pin.Motion(zeta)).vector
     return out
-
-
-def log3(rot: np.ndarray) -> np.ndarray:
-    """``pin.log3`` of stacked rotations (N, 3, 3) -> rotation vectors (N, 3) [rad]."""
-    cos = np.clip((np.trace(rot, axis1=1, axis2=2) - 1.0) / 2.0, -1.0, 1.0)
-    angle = np.arccos(cos)
-    vee = np.stack([rot[:, 2, 1] - rot[:, 1, 2], rot[:, 0, 2] - rot[:, 2, 0], rot[:, 1, 0] - rot[:, 0, 1]], 1)
-    small = angle < 1e-4  # θ / (2 sin θ) by its series
-    factor = np.where(small, 0.5 + angle**2 / 12.0, angle / (2.0 * np.sin(np.where(small, 1.0, angle))))
-    out = factor[:, None] * vee
-    for p in np.flatnonzero(angle > np.pi - 1e-2):  # near a half turn, R - Rᵀ says too little
-        out[p] = pin.log3(rot[p])
-    return out
-
-
-def jlog3(rot: np.ndarray, log: np.ndarray | None = None) -> np.ndarray:
-    """``pin.Jlog3`` of stacked rotations (N, 3, 3) -> (N, 3, 3), given or computing their logs."""
-    log = log3(rot) if log is None else log
-    angle = np.linalg.norm(log, axis=1)
-    small = angle < 1e-2  # the closed form cancels below; the series' next term is θ⁴/30240
-    safe = np.where(small, 1.0, angle)
-    closed = 1.0 / safe**2 - (1.0 + np.cos(safe)) / (2.0 * safe * np.sin(safe))
-    coef = np.where(small, 1.0 / 12.0 + angle**2 / 720.0, closed)
-    k = skew(log)
-    return np.eye(3) + 0.5 * k + coef[:, None, None] * (k @ k)
