@@ -174,6 +174,9 @@ def _chosen(
         opts, wanted = replace(opts, partial=opts.partial or checked), choice.params
         if choice.selection is not None:  # the guard's null repeats the selection
             opts = replace(opts, pull=replace(opts.pull, selected=True))
+    if opts.start is None and choice.diagnosis is not None:  # the diagnosis fitted the chosen model
+        last = choice.more[-1] if choice.more else choice.diagnosis
+        opts = replace(opts, start=WarmStart.of(last.extended))
     return setup, choice, wanted, {"nominal": nominal, "every": every}, opts
 
 

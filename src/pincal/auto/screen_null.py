@@ -118,11 +118,12 @@ def held_out_rms(design: Design, takes: Sequence[np.ndarray], res: np.ndarray, w
     norms = np.linalg.norm(jac, axis=0)
     jac = jac / np.where(norms > 0, norms, 1.0)  # unit columns: the normal equations stay well scaled
     squares, entries = np.zeros((len(takes), res.shape[1])), 0
+    all_gram, all_moment = jac.T @ jac, jac.T @ res  # a fold's training terms: these less its own
     for fold in range(design.n_folds):
         held = design.held(fold)
         out = held & design.counted
-        train_j, train_r = jac[~held], res[~held]
-        gram, moment = train_j.T @ train_j, train_j.T @ train_r
+        held_j = jac[held]
+        gram, moment = all_gram - held_j.T @ held_j, all_moment - held_j.T @ res[held]
         out_j, out_r = jac[out], res[out]  # |r - J s|² = |r|² - 2 sᵀ(Jᵀr) + sᵀ(JᵀJ)s on the held-out rows
         out_gram, out_moment, out_sq = out_j.T @ out_j, out_j.T @ out_r, np.sum(out_r**2, axis=0)
         for k, take in enumerate(takes):
