@@ -13,6 +13,7 @@ instead of ``x,y,z``: the name of the physical point (a socket) the tip was held
 from __future__ import annotations
 
 import csv
+import functools
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -72,6 +73,11 @@ class Dataset:
     def moves(self) -> np.ndarray:
         """Each joint's direction of motion into each pose (N, n): +1 rising, -1 falling, 0 for
         the source's first row (:func:`pincal.data.directions.move_directions`)."""
+        return self._moves
+
+    @functools.cached_property
+    def _moves(self) -> np.ndarray:
+        """:meth:`moves`, worked out once (a subset of a large data set asks for them each time)."""
         return self.directions if self.directions is not None else move_directions(self.q)
 
     @property
