@@ -256,3 +256,46 @@ def test_mdh_held_betas_are_not_estimated(experiment) -> None:
         assert not cal.identifiability.identifiable[cal.names.index(name)]
         assert cal.identifiability.reasons[name] == reason
         assert cal.theta[cal.names.index(name)] == 0.0
+
+
+# --- the pivoted QR ------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", ["ur5", "panda", "mrres5"])
+@pytest.mark.parametrize("kind", ["placements", "mdh"])
+def test_pivots_are_lapacks(get_robot, name: str, kind: str) -> None:
+    """The column pivots the identifiable set is chosen by are those of LAPACK's QR with column
+    pivoting (``scipy.linalg.qr``), up to the rank, on identification Jacobians (at the nominal
+    model, in natural units) whose redundant columns the preference weights tell apart, and on
+    their triangle."""
+    import scipy.linalg
+
+    from pincal.identify.identifiability import pivots
+    from pincal.identify.solver import register, set_up
+
+    robot = get_robot(name)
+    _, fit, _ = pincal.simulate(robot, n_fit=40, n_test=1, seed=1)
+    setup = set_up(robot, fit, kind)
+    jac = setup.problem.jacobian(register(setup)) * setup.scale
+    weighted = jac * (1.0 + 0.05 * np.linspace(0.0, 1.0, jac.shape[1]))
+    for mat in (weighted, np.linalg.qr(weighted, mode="r")):
+        sv = np.linalg.svd(mat, compute_uv=False)
+        rank = int(np.sum(sv > 1e-8 * sv[0]))
+        lapack = scipy.linalg.qr(mat, mode="r", pivoting=True)[1][:rank]
+        assert list(pivots(mat, rank)) == list(lapack)
+
+
+def test_a_calibration_loads_no_scipy_linalg() -> None:
+    """The default calibration's identifiable set needs no SciPy: its pivots are NumPy's."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, pincal\n"
+        "robot = pincal.load_robot('ur5')\n"
+        "_, fit, _ = pincal.simulate(robot, 30, 1, seed=0)\n"
+        "pincal.calibrate(robot, fit)\n"
+        "print('scipy.linalg' in sys.modules)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False", out.stdout

@@ -15,7 +15,6 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
-import scipy.linalg
 
 from pincal.data.checks import spread
 from pincal.data.dataset import Dataset, every_marker
@@ -59,6 +58,26 @@ def parameter_scale(units: tuple[str, ...] | list[str], length: float) -> np.nda
     return np.array([1.0 / length if u == "rad" else 1.0 for u in units])
 
 
+def pivots(mat: np.ndarray, count: int) -> np.ndarray:
+    """The first ``count`` column pivots of a QR with column pivoting (LAPACK's ``geqp3``, as
+    ``scipy.linalg.qr(pivoting=True)`` gives them): at each step the column whose part outside
+    the columns already chosen is longest (the first of equals). Written here so that a
+    calibration does not load SciPy's linear algebra (a quarter of a second of start-up)."""
+    rest = np.array(mat, dtype=float)
+    chosen: list[int] = []
+    for _ in range(min(count, rest.shape[1])):
+        norms = np.einsum("ij,ij->j", rest, rest)
+        norms[chosen] = -1.0
+        k = int(np.argmax(norms))
+        if norms[k] <= 0.0:
+            break
+        chosen.append(k)
+        unit = rest[:, k] / np.sqrt(norms[k])
+        for _ in range(2):  # twice: the columns left stay orthogonal to the chosen ones
+            rest -= np.outer(unit, unit @ rest)
+    return np.array(chosen, dtype=int)
+
+
 def analyse(
     jacobian: np.ndarray,
     names: tuple[str, ...],
@@ -92,8 +111,7 @@ def analyse(
     sv = np.linalg.svd(js, compute_uv=False)
     tol = rcond * sv[0]
     rank = int(np.sum(sv > tol))
-    _, piv = scipy.linalg.qr(js * preference[cand], mode="r", pivoting=True)
-    keep_local = np.sort(piv[:rank])
+    keep_local = np.sort(pivots(js * preference[cand], rank))
     keep = cand[keep_local]
     mask = np.zeros(len(names), dtype=bool)
     mask[keep] = True
@@ -144,8 +162,7 @@ def lost_parameters(
         ref = np.linalg.qr(ref, mode="r")
     sv_ref = np.linalg.svd(ref, compute_uv=False)
     rank_ref = int(np.sum(sv_ref > rcond * sv_ref[0])) if sv_ref.size else 0
-    _, piv = scipy.linalg.qr(ref, mode="r", pivoting=True)
-    keep = np.sort(piv[:rank_ref])  # a set the varied poses identify
+    keep = np.sort(pivots(ref, rank_ref))  # a set the varied poses identify
     js = jacobian[:, cand[keep]] * scale[cand[keep]]
     if js.shape[0] > js.shape[1]:
         js = np.linalg.qr(js, mode="r")
