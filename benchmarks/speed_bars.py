@@ -122,9 +122,14 @@ def write_inputs(folder: Path, tiago: Path, million: bool) -> dict[str, Path]:
     ur5, panda = pincal.load_robot("ur5"), pincal.load_robot("panda")
     pincal.write_csv(paths["ur5"], pincal.simulate(ur5, n_fit=100, n_test=0, seed=0)[1])
     pincal.write_csv(paths["panda"], pincal.simulate(panda, n_fit=10000, n_test=0, seed=0, rot_noise=5e-4)[1])
-    if million:
+    if million:  # in a child: a parent grown by 10⁶ simulated rows would lend its size to every row's peak
         paths["million"] = folder / "ur5_million.csv"
-        pincal.write_csv(paths["million"], pincal.simulate(ur5, n_fit=10**6, n_test=0, seed=0)[1])
+        code = (
+            "import sys, pincal\n"
+            "ur5 = pincal.load_robot('ur5')\n"
+            "pincal.write_csv(sys.argv[1], pincal.simulate(ur5, n_fit=10**6, n_test=0, seed=0)[1])\n"
+        )
+        subprocess.run([sys.executable, "-c", code, str(paths["million"])], check=True)
     return paths
 
 
