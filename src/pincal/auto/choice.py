@@ -128,11 +128,17 @@ class ModelChoice:
         return tuple(str(s.added) for s in self.selection.path[1:] if s.added not in self.params)
 
     @property
+    def last_diagnosis(self) -> Diagnosis | None:
+        """The diagnosis of the last cause sought (the first's when no further one was named):
+        its extended fit and cross-validation hold every cause named."""
+        return self.more[-1] if self.more else self.diagnosis
+
+    @property
     def gain(self) -> float:
         """Cross-validated RMS of the geometric baseline / with every cause (1 without one)."""
-        if self.diagnosis is None or self.extension is None:
+        last = self.last_diagnosis
+        if self.diagnosis is None or last is None or self.extension is None:
             return 1.0
-        last = self.more[-1] if self.more else self.diagnosis
         return self.diagnosis.baseline_cv_rms_mm / last.extended_cv_rms_mm
 
     def steps(self) -> list[tuple[str, float, float]]:

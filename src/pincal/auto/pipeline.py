@@ -174,8 +174,8 @@ def _chosen(
         opts, wanted = replace(opts, partial=opts.partial or checked), choice.params
         if choice.selection is not None:  # the guard's null repeats the selection
             opts = replace(opts, pull=replace(opts.pull, selected=True))
-    if opts.start is None and choice.diagnosis is not None:  # the diagnosis fitted the chosen model
-        last = choice.more[-1] if choice.more else choice.diagnosis
+    last = choice.last_diagnosis
+    if opts.start is None and last is not None:  # the diagnosis fitted the chosen model
         opts = replace(opts, start=WarmStart.of(last.extended))
     return setup, choice, wanted, {"nominal": nominal, "every": every}, opts
 

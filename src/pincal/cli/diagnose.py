@@ -116,8 +116,9 @@ def _plots(args: argparse.Namespace, choice: ModelChoice, data: Dataset, found: 
 def _write_json(path: Path, cal: Calibration, choice: ModelChoice, found: Outcome) -> None:
     """The JSON of contracts.md, with every cause (``causes``) and the gain of all of them."""
     result = choice.diagnosis
-    assert cal.plausibility is not None and result is not None  # plausible() gives every fit its verdict
-    last = choice.more[-1] if choice.more else result
+    last = choice.last_diagnosis
+    assert cal.plausibility is not None  # plausible() gives every fit its verdict
+    assert result is not None and last is not None
     out = {
         **result.to_dict(),
         "extended": {"cv_rms_mm": last.extended_cv_rms_mm},
