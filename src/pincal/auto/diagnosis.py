@@ -307,19 +307,18 @@ def diagnose_with(
             progress(k + 1, total, ext.label)
     screens.sort(key=lambda item: item[1].cv_rms_mm)
     null = screen_null(lin, [ext for ext, _ in screens], draws_for(step), seed)
-    p_of = p_values(lin, null)
+    lin_rms = lin.screen().cv_rms_mm  # the baseline's, linearised
+    p_of = p_values(lin_rms, null)
     options["partial"] = True
     top = screens[: min(FINALISTS, len(screens))]
     fits = Finalists(fit, what, [*held], options)
     level = ALPHA / step
-    likely = worth_judging(top, lin.screen().cv_rms_mm, p_of, level) if quick else top  # started early
+    likely = worth_judging(top, lin_rms, p_of, level) if quick else top  # started early
     can_name = not quick or any(p_of(s) < level for _, s in top) or not lin.folds_fit()  # else no refit
     base_jobs = [] if base_runs is None or not can_name else base_runs.jobs()
     first = batch([*base_jobs, *fits.jobs(likely)])  # the baseline's folds beside the fits
     if base_runs is not None:
-        base_rms = (
-            base_runs.pooled(first[: len(base_jobs)]).after.rms_mm if can_name else lin.screen().cv_rms_mm
-        )
+        base_rms = base_runs.pooled(first[: len(base_jobs)]).after.rms_mm if base_jobs else lin_rms
     finals = worth_judging(top, base_rms, p_of, level) if quick else top
     fulls = fits.on_all_poses(finals, dict(zip((e.label for e, _ in likely), first[len(base_jobs) :])))
     for k, (ext, _) in enumerate(finals):
@@ -337,5 +336,5 @@ def diagnose_with(
     cause = next((c for c in paying if c.implausible is None), None)
     draws = 0 if null is None else null.draws
     judged = tuple(finalists + screened)
-    by = "nonlinear" if can_name or base_runs is None else "linearised"
+    by = "linearised" if base_runs is not None and not base_jobs else "nonlinear"
     return Diagnosis(base, base_rms, cause, judged, folds, data.q, rejected, given, step, draws, by)

@@ -99,10 +99,9 @@ def screen_null(lin: Linearised, pool: Sequence[AnyEffect], draws: int, seed: in
     return ScreenNull(np.max(rms[0] / rms[1:], axis=0), len(pool))
 
 
-def p_values(lin: Linearised, null: ScreenNull | None) -> Callable[[Screen], float]:
+def p_values(base: float, null: ScreenNull | None) -> Callable[[Screen], float]:
     """A screened candidate's family-wise p-value: of its linearised gain over the baseline's
-    linearised cross-validated RMS, under ``null`` (1 without a null)."""
-    base = lin.screen().cv_rms_mm
+    linearised cross-validated RMS ``base`` [mm], under ``null`` (1 without a null)."""
 
     def p_value(screen: Screen) -> float:
         return 1.0 if null is None else null.p_value(base / screen.cv_rms_mm)
