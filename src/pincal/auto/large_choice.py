@@ -12,6 +12,7 @@ decide it are then averages over thousands of poses per fold.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -36,6 +37,25 @@ def subset_note(data: Dataset, seed: int) -> str:
         f"a random subset of {CHOICE_POSES:,} of them (seed {seed}); the chosen model is then fitted "
         f"on all {len(data):,} (--params all --extend none fits every pose without a choice)"
     )
+
+
+def calibrate_choosing(
+    fit: Callable[..., Calibration],
+    robot: Robot,
+    data: Dataset,
+    say: Callable[[str], None] | None = None,
+    **options: Any,
+) -> Calibration:
+    """``fit(robot, data, **options)``, its automatic choice made on a random subset above
+    :data:`CHOICE_POSES` poses (said first through ``say``), the chosen model fitted on every
+    pose; the calibration carries the subset's choice (its diagnosis among it)."""
+    if not needs_subset(data, options.get("params"), options.get("extension")):
+        return fit(robot, data, **options)
+    if say is not None:
+        say(subset_note(data, options.get("seed", 0)))
+    test = options.pop("test", None)  # held-out poses score the fit on every pose, not the choice
+    chosen, on_all = choose_on_subset(fit, robot, data, **options)
+    return replace(fit(robot, data, test=test, **on_all), choice=chosen.choice)
 
 
 def choose_on_subset(

@@ -4,11 +4,10 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Callable
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from pincal.auto.large_choice import choose_on_subset, needs_subset, subset_note
+from pincal.auto.large_choice import calibrate_choosing
 from pincal.auto.pipeline import calibrate
 from pincal.cli.common import (
     chain,
@@ -87,7 +86,7 @@ def _fit(
     progress: Callable[[int, int, str], None] | None,
 ) -> Calibration:
     """The calibration the options ask for; above :data:`pincal.auto.large_choice.CHOICE_POSES` poses
-    the automatic choice is made on a random subset, said first (issue 33)."""
+    the automatic choice is made on a random subset, said first."""
     options: dict[str, Any] = dict(
         model=args.model,
         measure=args.measure,
@@ -104,11 +103,7 @@ def _fit(
         pull=pull(args),
         **fit_options(args),
     )
-    if not needs_subset(data, args.params, args.extend):
-        return calibrate(robot, data, test=test, **options)
-    print(subset_note(data, args.seed))
-    chosen, options = choose_on_subset(calibrate, robot, data, **options)
-    return replace(calibrate(robot, data, test=test, **options), choice=chosen.choice)
+    return calibrate_choosing(calibrate, robot, data, print, test=test, **options)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from pincal.auto.choice import ModelChoice, choice_of
+from pincal.auto.large_choice import calibrate_choosing
 from pincal.auto.pipeline import calibrate
 from pincal.cli.common import (
     chain,
@@ -44,11 +45,13 @@ def run(args: argparse.Namespace) -> int:
     data = load_data(args.data, robot, args)
     check_applicable(args, data)
     progress = progress_line("candidates")
-    cal = calibrate(
+    cal = calibrate_choosing(  # above 20,000 poses the diagnosis runs on a subset, as calibrate's
+        calibrate,
         robot,
         data,
-        args.model,
-        args.measure,
+        print,
+        model=args.model,
+        measure=args.measure,
         params=args.params,
         extension="auto",
         payload=args.payload,
