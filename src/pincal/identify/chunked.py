@@ -94,7 +94,7 @@ def target_frames(
     """:meth:`ProblemRows.target_frames` of a large problem: its frames hold the tip frame only."""
     tips_r, tips_p, rots, poss = [], [], [], []
     for block in blocks(problem):
-        frames, rot, pos = block.target_frames(theta, in_instrument)
+        frames, rot, pos = block.target_frames(theta, in_instrument, tip_only=True)
         _forget(block)
         tips_r.append(frames.tip_rotation.copy())  # a view would keep every frame of the block
         tips_p.append(frames.tip_translation.copy())

@@ -35,6 +35,12 @@ def pair_directions(points: np.ndarray, pairs: np.ndarray) -> np.ndarray:
     return np.divide(along, length, out=np.zeros_like(along), where=length > 0)
 
 
+def tip_only(problem: ProblemRows, cols: np.ndarray | None) -> bool:
+    """Whether the rows of the unknowns ``cols`` (None: the residuals alone) need the tip frame
+    alone: no column of the model or of the effect, whose columns need every joint's frame."""
+    return cols is None or not bool(np.any(cols < problem.n_model))
+
+
 class MeasurementKind:
     """What one kind of measurement is: its rows, unknowns and words.
 
@@ -122,7 +128,7 @@ class Position(MeasurementKind):
         self, problem: ProblemRows, theta: np.ndarray, cols: np.ndarray | None
     ) -> tuple[np.ndarray, np.ndarray]:
         """Residuals ``p_model - p_measured`` (3 per pose, [m]) and their Jacobian."""
-        frames, rot, pos = problem.target_frames(theta, in_instrument=True)
+        frames, rot, pos = problem.target_frames(theta, in_instrument=True, tip_only=tip_only(problem, cols))
         res = (pos - problem.data.points).reshape(-1)
         if cols is None:
             return res, np.empty((0, 0))
@@ -145,7 +151,7 @@ class Pose(MeasurementKind):
         """Residuals: the position [m] and ``w · log3(R_measuredᵀ R_model)`` (w [m/rad]), 6 per
         pose, and their Jacobian."""
         m = problem.measurement
-        frames, rot, pos = problem.target_frames(theta, in_instrument=True)
+        frames, rot, pos = problem.target_frames(theta, in_instrument=True, tip_only=tip_only(problem, cols))
         res_p = pos - problem.data.points
         err = np.transpose(problem.measured_rotations, (0, 2, 1)) @ rot
         log = log3(err)
@@ -172,7 +178,7 @@ class Distance(MeasurementKind):
         self, problem: ProblemRows, theta: np.ndarray, cols: np.ndarray | None
     ) -> tuple[np.ndarray, np.ndarray]:
         """Residuals ``|p_i - p_j| - d_ij`` (one per pair, [m]) and their Jacobian."""
-        frames, rot, pos = problem.target_frames(theta, in_instrument=False)
+        frames, rot, pos = problem.target_frames(theta, in_instrument=False, tip_only=tip_only(problem, cols))
         i, j = problem.pairs[:, 0], problem.pairs[:, 1]
         diff = pos[i] - pos[j]
         dist = np.linalg.norm(diff, axis=1)
@@ -220,7 +226,7 @@ class Points(MeasurementKind):
     ) -> tuple[np.ndarray, np.ndarray]:
         """Residuals: the tip minus its point (3 per pose, [m]), then the known distances' misfits;
         and their Jacobian (:func:`pincal.identify.fixed_points.points_rows`)."""
-        frames, rot, pos = problem.target_frames(theta, in_instrument=False)
+        frames, rot, pos = problem.target_frames(theta, in_instrument=False, tip_only=tip_only(problem, cols))
         return points_rows(problem, theta, cols, frames, (rot, pos))
 
 

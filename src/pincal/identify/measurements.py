@@ -63,6 +63,25 @@ def branch_only(frames: Frames, k: int, v: np.ndarray, w: np.ndarray | None) -> 
     return v * mask, None if w is None else w * mask
 
 
+def base_tip(frames: Frames, registration: pin.SE3 | None) -> tuple[np.ndarray, np.ndarray]:
+    """``base_R_tip`` (N, 3, 3) and ``base_p_tip`` (N, 3) [m] of chain frames in base axes, or of
+    frames in the instrument's axes (``registration``: ``instrument_T_base``)."""
+    rot, pos = frames.tip_rotation, frames.tip_translation
+    if registration is None:
+        return rot.copy(), pos.copy()  # a copy: a view would keep every chain frame
+    back = registration.rotation.T
+    return back @ rot, (pos - registration.translation) @ back.T
+
+
+def tip_frames(rot: np.ndarray, pos: np.ndarray, registration: pin.SE3 | None) -> Frames:
+    """Frames holding only the tip frame ``rot`` (N, 3, 3), ``pos`` (N, 3) [m] given in base axes,
+    in the instrument's axes when ``registration`` (``instrument_T_base``) is given."""
+    if registration is not None:
+        turn = registration.rotation
+        rot, pos = turn @ rot, pos @ turn.T + registration.translation
+    return Frames(rot[None], pos[None])
+
+
 class Problem:
     """The residual function of a model, a measurement model and a dataset."""
 
@@ -96,6 +115,7 @@ class Problem:
         self.measured_rotations = data.rotations() if measurement.measure.orientation else np.empty((0, 3, 3))
         self.point_index = point_index(data, measurement.points) if measurement.measure.fixed_points else None
         self._frames: tuple[Any, Any] = (None, None)  # the last θ's frames
+        self._tips: tuple[Any, Any] = (None, None)  # the last geometry's tip frame, in base axes
 
     def on(self, data: Dataset) -> Problem:
         """The same problem on other poses (a block, a sample)."""
@@ -145,10 +165,12 @@ class Problem:
         return self.data.q + moved @ self.onto_joints
 
     def target_frames(
-        self, theta: np.ndarray, in_instrument: bool = False
+        self, theta: np.ndarray, in_instrument: bool = False, tip_only: bool = False
     ) -> tuple[Frames, np.ndarray, np.ndarray]:
         """Chain frames, ``R_target`` (N, 3, 3) and ``p_target`` (N, 3) [m], in base axes (or in
-        the instrument's, ``in_instrument``)."""
+        the instrument's, ``in_instrument``). With ``tip_only``, the frames may hold the tip alone
+        (enough for the residuals and the registration's, tool's and markers' columns): at a
+        geometry met before (θ's model part), the tip frame kept from then, without the chain."""
         key = (theta.tobytes(), in_instrument)
         if self._frames[0] == key:  # a solver asks for residuals and Jacobian at the same θ
             return self._frames[1]
@@ -156,10 +178,17 @@ class Problem:
             self._frames = (key, chunked.target_frames(self, theta, in_instrument))
             return self._frames[1]
         x, reg, tool = self.split(theta)
-        chain = self.model.chain(x[: self.model.n_params])
-        if in_instrument:
-            chain = chain.registered(reg)
-        frames = forward(chain, self.reached(theta), self.row_tips())
+        geometry = theta[: self.n_model].tobytes()
+        whole = not (tip_only and self._tips[0] == geometry)
+        if not whole:  # a registration's fit moves no joint frame
+            base_r, base_p = self._tips[1]
+            frames = tip_frames(base_r, base_p, reg if in_instrument else None)
+        else:
+            chain = self.model.chain(x[: self.model.n_params])
+            if in_instrument:
+                chain = chain.registered(reg)
+            frames = forward(chain, self.reached(theta), self.row_tips())
+            self._tips = (geometry, base_tip(frames, reg if in_instrument else None))
         if self.measurement.markers and self.data.marker is not None:
             rot = frames.tip_rotation
             points = marker_points(self.n_model, self.measurement, theta)
@@ -169,7 +198,8 @@ class Problem:
             pos = (
                 frames.tip_translation + stacked_dot(frames.tip_rotation, tool.translation[:, None])[:, :, 0]
             )
-        self._frames = (key, (frames, rot, pos))
+        if whole:  # a tip-only answer serves no Jacobian of the chain
+            self._frames = (key, (frames, rot, pos))
         return frames, rot, pos
 
     def row_tips(self) -> np.ndarray | None:
@@ -181,7 +211,7 @@ class Problem:
 
     def predict(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Predicted target positions (N, 3) [m] and rotations (N, 3, 3) in the instrument frame."""
-        _, rot, pos = self.target_frames(theta, in_instrument=True)
+        _, rot, pos = self.target_frames(theta, in_instrument=True, tip_only=True)
         return pos, rot
 
     def joint_sensitivity(self, theta: np.ndarray, joint: int) -> np.ndarray:

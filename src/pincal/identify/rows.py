@@ -57,9 +57,10 @@ class ProblemRows(Protocol):
         """The pose each residual row belongs to."""
 
     def target_frames(
-        self, theta: np.ndarray, in_instrument: bool = False
+        self, theta: np.ndarray, in_instrument: bool = False, tip_only: bool = False
     ) -> tuple[Frames, np.ndarray, np.ndarray]:
-        """Chain frames, target rotations (N, 3, 3) and positions (N, 3) [m]."""
+        """Chain frames (with ``tip_only``, perhaps the tip's alone), target rotations (N, 3, 3)
+        and positions (N, 3) [m]."""
 
     def target_jacobian(
         self,
