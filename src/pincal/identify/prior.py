@@ -114,9 +114,12 @@ def choose_weight(
         return _fixed(setup, start, free, setup.prior_weight, "default (robust loss: no Gaussian evidence)")
     if given is not None:
         return _fixed(setup, start, free, given, "given")
-    scores = evidence_curve(setup, start, free, WEIGHTS)
-    chosen = replace(setup, prior_weight=WEIGHTS[int(np.argmax(scores))])
-    theta, result = solve(chosen, start, free)
+    scores, steps = _curve(setup, start, free, WEIGHTS)
+    best = int(np.argmax(scores))
+    chosen = replace(setup, prior_weight=WEIGHTS[best])
+    stepped = start.copy()  # the chosen weight's Gauss-Newton step: the fit begins at its minimum
+    stepped[free] += steps[best] * setup.scale[free]
+    theta, result = solve(chosen, stepped, free)
     return PriorChoice(chosen.prior_weight, "evidence", tuple(zip(WEIGHTS, scores))), chosen, theta, result
 
 
@@ -131,6 +134,18 @@ def evidence_curve(
     each weight's fit is the Gauss-Newton step from ``theta`` (two solves in all, not one per
     weight; the corrections are small enough for the residuals to be nearly linear in them).
     ``terms``: :func:`pincal.identify.chunked.normal_terms` at ``theta``, when already computed."""
+    return _curve(setup, theta, free, weights, terms)[0]
+
+
+def _curve(
+    setup: Setup,
+    theta: np.ndarray,
+    free: np.ndarray,
+    weights: Sequence[float],
+    terms: tuple[np.ndarray, np.ndarray, float, int] | None = None,
+) -> tuple[list[float], list[np.ndarray]]:
+    """:func:`evidence_curve`, and each weight's Gauss-Newton step from ``theta`` (natural units,
+    over the free unknowns)."""
     problem = setup.problem
     terms = normal_terms(problem, theta, free) if terms is None else terms  # by blocks on large data
     unscaled, unscaled_grad, rr, n_rows = terms
@@ -148,7 +163,7 @@ def evidence_curve(
         moved = rr + 2.0 * float(step @ grad) + float(step @ gram @ step)  # |r + J step|²
         total = moved + weight**2 * float(held @ held)
         out.append(_score(n_rows, n_pulled, len(pen), total, weight, logdet))
-    return out
+    return out, [step for step, _ in steps]
 
 
 def _ridge_steps(

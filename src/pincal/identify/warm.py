@@ -50,6 +50,11 @@ class WarmStart:
         theta = cal.theta if cal.default_pull_theta is None else cal.default_pull_theta
         return cls(tuple(cal.names), n_model, cal.measurement, theta)
 
+    @classmethod
+    def at(cls, problem: Problem, theta: np.ndarray) -> WarmStart:
+        """The start a fit ``theta`` of ``problem`` gives."""
+        return cls(tuple(problem.names), problem.n_model, problem.measurement, theta)
+
     def fit(self, problem: Problem, nominal: np.ndarray, free: np.ndarray) -> np.ndarray:
         """Where the fit of the unknowns ``free`` (mask) starts on ``problem``: its
         registration-only θ ``nominal`` with the free unknowns this start holds set to their
