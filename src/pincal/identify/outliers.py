@@ -6,13 +6,17 @@ spread), so one bad pose cannot drag the model towards itself and hide. Each pos
 score, the size of its residual (the norm of its 3 or 6 residuals, or for distance data the RMS
 of the pairs it belongs to), and a pose is an outlier when its score exceeds
 ``median + threshold · 1.4826 · MAD`` of all the scores, that is ``threshold`` robust standard
-deviations above the typical pose. At most :data:`MAX_FRACTION` of the poses are excluded (the
-worst first): beyond that, the residuals are heavy-tailed rather than spoiled by a few poses,
-and the screen leaves them alone.
+deviations above the typical pose. On many poses the threshold rises so that noise alone
+flags no pose (:func:`noise_threshold`): among 10⁶ poses of Gaussian noise the largest is about
+6 robust standard deviations above the median, and flagging it would be a false outlier (and a
+second fit). At most :data:`MAX_FRACTION` of the poses are excluded (the worst first): beyond
+that, the residuals are heavy-tailed rather than spoiled by a few poses, and the screen leaves
+them alone.
 """
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -22,6 +26,8 @@ from pincal.options import THRESHOLD
 
 MAX_FRACTION = 0.2  # of the poses, at most
 MIN_POSES = 8  # fewer poses: no screen (too few for a robust spread)
+#: Chance that the screen flags any pose of pure noise, over all the poses (:func:`noise_threshold`).
+FAMILY_LEVEL = 0.01
 
 
 def pose_scores(problem: Problem, theta: np.ndarray) -> np.ndarray:
@@ -52,6 +58,35 @@ def far_off(scores: np.ndarray, threshold: float = THRESHOLD) -> np.ndarray:
     return scores > median + threshold * 1.4826 * max(mad, 1e-3 * median, 1e-12)
 
 
+def chi_sf(x: float, k: int) -> float:
+    """``P(|Z| > x)`` for ``Z`` a standard Gaussian vector of ``k`` components (chi's survival)."""
+    half = x * x / 2.0
+    if k % 2 == 0:
+        return math.exp(-half) * sum(half**i / math.factorial(i) for i in range(k // 2))
+    terms, term = 0.0, x
+    for i in range(1, (k - 1) // 2 + 1):
+        terms, term = terms + term, term * x * x / (2 * i + 1)
+    return math.erfc(x / math.sqrt(2.0)) + math.sqrt(2.0 / math.pi) * math.exp(-half) * terms
+
+
+def _solve(f: Any, lo: float, hi: float) -> float:
+    """The root of the decreasing ``f`` in ``[lo, hi]`` (bisection to 1e-10)."""
+    while hi - lo > 1e-10:
+        mid = (lo + hi) / 2.0
+        lo, hi = (mid, hi) if f(mid) > 0 else (lo, mid)
+    return (lo + hi) / 2.0
+
+
+def noise_threshold(n: int, k: int, level: float = FAMILY_LEVEL) -> float:
+    """Robust standard deviations above the median (as :func:`far_off` counts them) that the
+    largest of ``n`` pose scores of pure noise (norms of ``k`` Gaussian residuals) passes with
+    chance ``level``."""
+    median = _solve(lambda x: chi_sf(x, k) - 0.5, 0.0, 50.0)
+    mad = _solve(lambda d: 0.5 - (chi_sf(max(median - d, 0.0), k) - chi_sf(median + d, k)), 0.0, 50.0)
+    top = _solve(lambda x: chi_sf(x, k) - level / max(n, 1), 0.0, 50.0)
+    return (top - median) / (1.4826 * mad)
+
+
 def find_outliers(
     problem: Problem,
     theta: np.ndarray,
@@ -75,6 +110,7 @@ def find_outliers(
     f_scale = max(robust_scale(problem.residuals(theta)), 1e-9)  # [m]
     robust = solve(theta, "soft_l1", f_scale)
     scores = pose_scores(problem, robust)
+    threshold = max(threshold, noise_threshold(n, problem.measurement.measure.width))
     bad = np.flatnonzero(far_off(scores, threshold))
     bad = bad[np.argsort(-scores[bad])]
     if len(bad) > MAX_FRACTION * n:
