@@ -28,6 +28,7 @@ from typing import Any, ClassVar, Protocol, TypeVar
 import numpy as np
 
 from pincal.data.dataset import Dataset
+from pincal.identify.lm import triangle_of
 from pincal.identify.rows import ProblemRows
 from pincal.kinematics.chain import Frames
 
@@ -114,18 +115,13 @@ def triangle(
     """The triangle R (P + 1, P + 1) of the QR of ``[J · x_scale, r]`` over the free columns,
     with the rows ``extra`` (their Jacobian and residuals) below the data's, block by block."""
     cols = np.arange(problem.n_params)[free]
-    tri = np.empty((0, len(cols) + 1))
+    tri = None
     for block in blocks(problem):
         r, j = block.rows(theta, cols)
         _forget(block)
-        tri = _r_of(np.vstack([tri, np.column_stack([j * x_scale, r])]))
+        tri = triangle_of(np.column_stack([j * x_scale, r]), tri)
     jac, res = extra
-    return _r_of(np.vstack([tri, np.column_stack([jac * x_scale, res])]))
-
-
-def _r_of(matrix: np.ndarray) -> np.ndarray:
-    """The triangle R of the QR of ``matrix`` (LAPACK's blocked Householder QR)."""
-    return np.asarray(np.linalg.qr(matrix, mode="r"))
+    return triangle_of(np.column_stack([jac * x_scale, res]), tri)
 
 
 def gram(problem: ProblemRows, theta: np.ndarray, free: np.ndarray) -> np.ndarray:

@@ -61,6 +61,21 @@ def damped_less(damping: float, ratio: float) -> float:
     return damping * max(1.0 / DAMPING_FALL, 1.0 - (2.0 * ratio - 1.0) ** 3)
 
 
+#: Rows of each piece a tall matrix's QR takes at a time (:func:`triangle_of`).
+QR_ROWS = 2000
+
+
+def triangle_of(matrix: np.ndarray, below: np.ndarray | None = None) -> np.ndarray:
+    """The triangle R of the QR of ``matrix`` (m, n) stacked on ``below``'s rows (a triangle
+    already found, or None), :data:`QR_ROWS` rows at a time: the same R (up to its rows' signs,
+    which no step depends on) as one LAPACK QR of every row, 2-3 × faster on tall matrices,
+    whose Householder vectors no longer fit the cache."""
+    tri = np.empty((0, matrix.shape[1])) if below is None else below
+    for first in range(0, max(len(matrix), 1), QR_ROWS):
+        tri = np.asarray(np.linalg.qr(np.vstack([tri, matrix[first : first + QR_ROWS]]), mode="r"))
+    return tri
+
+
 def _step(tri: np.ndarray, qtr: np.ndarray, damping: float) -> np.ndarray:
     """argmin ‖R δ + Qᵀr‖² + λ ‖δ‖² (minimum norm where R is singular)."""
     if damping > 0.0:
@@ -99,10 +114,7 @@ def levenberg_marquardt(
     cost, nfev, njev, damping, growth = 0.5 * float(res @ res), 1, 0, 0.0, DAMPING_GROWTH
     status, message = 0, "the maximum number of function evaluations is exceeded"
     while nfev < max_nfev and status == 0:
-        if triangle is None:
-            tri_all = np.asarray(np.linalg.qr(np.column_stack([jac(x) * x_scale, res]), mode="r"))
-        else:
-            tri_all = triangle(x)
+        tri_all = triangle_of(np.column_stack([jac(x) * x_scale, res])) if triangle is None else triangle(x)
         njev += 1
         n = len(x)
         tri, qtr = tri_all[:n, :n], tri_all[:n, n]

@@ -132,13 +132,6 @@ def stacked_dot(rot: np.ndarray, mat: np.ndarray) -> np.ndarray:
     return (rot.reshape(-1, rot.shape[2]) @ mat).reshape(rot.shape[0], 3, mat.shape[1])
 
 
-def axis_rotations(axis: np.ndarray, angles: np.ndarray) -> np.ndarray:
-    """Rotations about a unit axis (3,) by angles (N,) [rad], Rodrigues' formula -> (N, 3, 3)."""
-    k = skew(np.asarray(axis, dtype=float))
-    s, c = np.sin(angles)[:, None, None], np.cos(angles)[:, None, None]
-    return np.eye(3) + s * k + (1.0 - c) * (k @ k)
-
-
 def forward(chain: Chain, q: np.ndarray, row_tips: np.ndarray | None = None) -> Frames:
     """World frames of all chain positions for joint values ``q`` (N, n) [rad or m]; a tree's
     (:func:`forward_tree`) with each pose's tip ``row_tips`` (N,) (default: the first)."""
@@ -151,14 +144,7 @@ def forward(chain: Chain, q: np.ndarray, row_tips: np.ndarray | None = None) -> 
     rotations[0], translations[0] = chain.placements[0].rotation, chain.placements[0].translation
     rot, pos = rotations[0], translations[0]
     for j in range(n):
-        v, w = chain.axes[j, :3], chain.axes[j, 3:]
-        if w.any():  # revolute joint through the frame origin: R · (I + s K + (1 - c) K²)
-            k = skew(w)
-            rot_k = stacked_dot(rot, k)
-            s, c = np.sin(q[:, j])[:, None, None], np.cos(q[:, j])[:, None, None]
-            rot = rot + s * rot_k + (1.0 - c) * stacked_dot(rot_k.reshape(-1, 3, 3), k)
-        else:  # prismatic
-            pos = pos + stacked_dot(rot, v[:, None])[:, :, 0] * q[:, j, None]
+        rot, pos = _turned(rot, pos, chain.axes[j], q[:, j])
         rotations[2 * j + 1], translations[2 * j + 1] = rot, pos
         c_next = chain.placements[j + 1]
         pos = pos + stacked_dot(rot, c_next.translation[:, None])[:, :, 0]
@@ -175,14 +161,24 @@ def _moved(rot: np.ndarray, pos: np.ndarray, c: pin.SE3) -> tuple[np.ndarray, np
 def _turned(
     rot: np.ndarray, pos: np.ndarray, axis: np.ndarray, q: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Frames (N, 3, 3), (N, 3) moved by a joint of local twist ``axis`` (6,) by ``q`` (N,)."""
+    """Frames (N, 3, 3), (N, 3) moved by a joint of local twist ``axis`` (6,) by ``q`` (N,): a
+    revolute joint through the frame's origin turns it by ``I + s K + (1 - c) K²``; about one of
+    the frame's own axes (most URDF joints), that mixes two columns of ``R``."""
     v, w = axis[:3], axis[3:]
-    if np.any(w):
-        k = skew(w)
-        rot_k = stacked_dot(rot, k)
-        s, c = np.sin(q)[:, None, None], np.cos(q)[:, None, None]
-        return rot + s * rot_k + (1.0 - c) * stacked_dot(rot_k.reshape(-1, 3, 3), k), pos
-    return rot, pos + stacked_dot(rot, v[:, None])[:, :, 0] * q[:, None]
+    if not np.any(w):  # prismatic
+        return rot, pos + stacked_dot(rot, v[:, None])[:, :, 0] * q[:, None]
+    s, c = np.sin(q), np.cos(q)
+    along = np.flatnonzero(w)
+    if len(along) == 1 and abs(w[along[0]]) == 1.0:
+        i, j = ((1, 2), (2, 0), (0, 1))[along[0]]  # R · rotation about e_a: columns i, j mix
+        s = s * w[along[0]]
+        out = rot.copy()
+        out[:, :, i] = c[:, None] * rot[:, :, i] + s[:, None] * rot[:, :, j]
+        out[:, :, j] = c[:, None] * rot[:, :, j] - s[:, None] * rot[:, :, i]
+        return out, pos
+    k = skew(w)
+    rot_k = stacked_dot(rot, k)
+    return rot + s[:, None, None] * rot_k + (1.0 - c)[:, None, None] * stacked_dot(rot_k, k), pos
 
 
 def forward_tree(chain: Chain, q: np.ndarray, row_tips: np.ndarray | None = None) -> Frames:
@@ -277,9 +273,14 @@ def summed_columns(
     if frames.reach is not None:  # a tree: the position moves only its branch's rows
         rot = rot * frames.reach[at][:, :, None, None]
     lever = point[None] - frames.translations[at]  # (K, N, 3)
-    arm = np.swapaxes(np.cross(lever[:, :, None, :], np.swapaxes(rot, 2, 3)), 2, 3)  # [lever]× R
-    side = np.concatenate([rot, -arm], axis=3).transpose(1, 2, 0, 3).reshape(3 * n, 6 * len(at))
-    v = (side @ twists[at].reshape(6 * len(at), c)).reshape(n, 3, c)
+    turned = rot.transpose(1, 2, 0, 3)  # (N, 3 rows, K, 3)
+    side = np.empty((n, 3, len(at), 6))  # [R | -[lever]× R] of every position, side by side
+    side[..., :3] = turned
+    x, y, z = (lever[:, :, i].T[:, :, None] for i in range(3))  # (N, K, 1)
+    side[:, 0, :, 3:] = z * turned[:, 1] - y * turned[:, 2]
+    side[:, 1, :, 3:] = x * turned[:, 2] - z * turned[:, 0]
+    side[:, 2, :, 3:] = y * turned[:, 0] - x * turned[:, 1]
+    v = (side.reshape(3 * n, 6 * len(at)) @ twists[at].reshape(6 * len(at), c)).reshape(n, 3, c)
     if not rotation:
         return v, None
     turns = rot.transpose(1, 2, 0, 3).reshape(3 * n, 3 * len(at))
