@@ -79,14 +79,23 @@ COMMANDS: dict[str, tuple[str, tuple[str, ...]]] = {
 
 
 def input_file(folder: Path, kind: str, n: int) -> Path:
-    """The input of kind ``kind`` with ``n`` rows in ``folder``, written when missing."""
+    """The input of kind ``kind`` with ``n`` rows in ``folder``, written when missing, by a child
+    process: a parent grown by the simulation would lend its size to every timed child's peak
+    memory (a forked child's ``ru_maxrss`` starts at its parent's)."""
     path = folder / f"ur5_{n}.csv" if kind == "pos" else folder / f"{kind}_{n}.csv"
     if not path.exists():
-        if kind == "tcp":
-            write_flange_poses(path, n)
-        else:
-            write_rows(path, n, rot_noise=5e-4 if kind == "pose" else None)
+        code = "import sys, scale; scale.write_input(sys.argv[1], sys.argv[2], int(sys.argv[3]))"
+        here = str(Path(__file__).parent)
+        subprocess.run([sys.executable, "-c", code, kind, str(path), str(n)], check=True, cwd=here)
     return path
+
+
+def write_input(kind: str, path: str, n: int) -> None:
+    """Write the input of kind ``kind`` (``pos``, ``pose`` or ``tcp``) with ``n`` rows to ``path``."""
+    if kind == "tcp":
+        write_flange_poses(Path(path), n)
+    else:
+        write_rows(Path(path), n, rot_noise=5e-4 if kind == "pose" else None)
 
 
 def run_child(args: list[str]) -> tuple[float, float, float, int]:
