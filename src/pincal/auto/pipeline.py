@@ -142,8 +142,7 @@ def _calibrated(
     if bad.size and choice.diagnosis is not None and choice.diagnosis.candidates:
         bad = _outliers_for_both(setup, choice, bad, wanted, opts)
     if bad.size:  # leave them out and start again: the choice too is made on the poses kept
-        begun = found.theta if found.base is None else found.base  # its fit at the default pull
-        start = asked.start or WarmStart.at(found.setup.problem, begun)  # nearly the same poses
+        start = asked.start or WarmStart.at(found.setup.problem, found.base)  # nearly the same poses
         return _without(robot, data, what, bad, scores, replace(asked, start=start), test, progress)
     if asked.nested is not False:
         judge = _judge(robot, data, what, asked, progress)

@@ -176,8 +176,7 @@ class Protected:
         screening: the problem and fit the outliers are screened on: the default pull's fit
             (:data:`pincal.identify.solver.PRIOR_WEIGHT`) when the weight is chosen, as its choice is made
             for Gaussian residuals and gross outliers would inflate it; else the fit.
-        base: the fit at the default pull, from which the fit at the chosen weight was solved
-            (None: not recorded).
+        base: the fit at the default pull, from which the fit at the chosen weight was solved.
     """
 
     setup: Setup
@@ -188,7 +187,7 @@ class Protected:
     prior: PriorChoice
     guard: Guard
     screening: tuple[Setup, np.ndarray]
-    base: np.ndarray | None = None
+    base: np.ndarray
 
     @property
     def free(self) -> np.ndarray:

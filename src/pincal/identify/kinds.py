@@ -24,6 +24,7 @@ from pincal.data.dataset import Dataset
 from pincal.errors import DataError
 from pincal.identify.fixed_points import points_rows
 from pincal.identify.rows import ProblemRows
+from pincal.kinematics.chain import Frames
 from pincal.kinematics.so3 import jlog3, log3
 
 
@@ -33,12 +34,6 @@ def pair_directions(points: np.ndarray, pairs: np.ndarray) -> np.ndarray:
     along = points[pairs[:, 0]] - points[pairs[:, 1]]
     length = np.linalg.norm(along, axis=1, keepdims=True)
     return np.divide(along, length, out=np.zeros_like(along), where=length > 0)
-
-
-def tip_only(problem: ProblemRows, cols: np.ndarray | None) -> bool:
-    """Whether the rows of the unknowns ``cols`` (None: the residuals alone) need the tip frame
-    alone: no column of the model or of the effect, whose columns need every joint's frame."""
-    return cols is None or not bool(np.any(cols < problem.n_model))
 
 
 class MeasurementKind:
@@ -92,6 +87,15 @@ class MeasurementKind:
         Jacobian (rows, c) (else an empty array)."""
         raise NotImplementedError
 
+    def frames(
+        self, problem: ProblemRows, theta: np.ndarray, cols: np.ndarray | None
+    ) -> tuple[Frames, np.ndarray, np.ndarray]:
+        """``problem``'s target frames at θ, in the instrument's axes when this kind is registered:
+        the tip's alone when the unknowns ``cols`` (None: the residuals alone) hold no column of
+        the model or of the effect, whose columns need every joint's frame."""
+        tip_only = cols is None or not bool(np.any(cols < problem.n_model))
+        return problem.target_frames(theta, in_instrument=self.registered, tip_only=tip_only)
+
     def owners(self, problem: ProblemRows) -> np.ndarray:
         """The pose(s) each residual row belongs to (rows, k): k = 2 for pairs, else 1 (-1: none,
         as a known distance's row)."""
@@ -128,7 +132,7 @@ class Position(MeasurementKind):
         self, problem: ProblemRows, theta: np.ndarray, cols: np.ndarray | None
     ) -> tuple[np.ndarray, np.ndarray]:
         """Residuals ``p_model - p_measured`` (3 per pose, [m]) and their Jacobian."""
-        frames, rot, pos = problem.target_frames(theta, in_instrument=True, tip_only=tip_only(problem, cols))
+        frames, rot, pos = self.frames(problem, theta, cols)
         res = (pos - problem.data.points).reshape(-1)
         if cols is None:
             return res, np.empty((0, 0))
@@ -151,7 +155,7 @@ class Pose(MeasurementKind):
         """Residuals: the position [m] and ``w · log3(R_measuredᵀ R_model)`` (w [m/rad]), 6 per
         pose, and their Jacobian."""
         m = problem.measurement
-        frames, rot, pos = problem.target_frames(theta, in_instrument=True, tip_only=tip_only(problem, cols))
+        frames, rot, pos = self.frames(problem, theta, cols)
         res_p = pos - problem.data.points
         err = np.transpose(problem.measured_rotations, (0, 2, 1)) @ rot
         log = log3(err)
@@ -178,7 +182,7 @@ class Distance(MeasurementKind):
         self, problem: ProblemRows, theta: np.ndarray, cols: np.ndarray | None
     ) -> tuple[np.ndarray, np.ndarray]:
         """Residuals ``|p_i - p_j| - d_ij`` (one per pair, [m]) and their Jacobian."""
-        frames, rot, pos = problem.target_frames(theta, in_instrument=False, tip_only=tip_only(problem, cols))
+        frames, rot, pos = self.frames(problem, theta, cols)
         i, j = problem.pairs[:, 0], problem.pairs[:, 1]
         diff = pos[i] - pos[j]
         dist = np.linalg.norm(diff, axis=1)
@@ -226,7 +230,7 @@ class Points(MeasurementKind):
     ) -> tuple[np.ndarray, np.ndarray]:
         """Residuals: the tip minus its point (3 per pose, [m]), then the known distances' misfits;
         and their Jacobian (:func:`pincal.identify.fixed_points.points_rows`)."""
-        frames, rot, pos = problem.target_frames(theta, in_instrument=False, tip_only=tip_only(problem, cols))
+        frames, rot, pos = self.frames(problem, theta, cols)
         return points_rows(problem, theta, cols, frames, (rot, pos))
 
 
