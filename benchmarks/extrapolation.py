@@ -17,12 +17,17 @@ whatever they say. ``before``: exported by the guard alone (``z > z_min``); ``af
 guard and the check (:mod:`pincal.identify.extrapolation`). "worse": the fit's RMS on the new
 poses more than 5 % above the nominal model's (registration and tool fitted).
 
+``--measure pose`` measures the tool frame's orientation too (``--sigma`` mrad per axis as well);
+``--measure distance`` fits the distances between every two fitted poses (no registration) and
+scores the distances between every two new poses.
+
 The check's cost (``--cost K``): ``K`` default ``pincal calibrate`` runs on 100 simulated poses
 (:func:`pincal.simulate`), the time spent in the check over the run's.
 
 Usage::
 
     python benchmarks/extrapolation.py [--sessions 100] [--quick] [--sigma 0.05] [--cost 5]
+        [--measure position|pose|distance]
         [--json FILE] [--markdown FILE]
 """
 
@@ -66,6 +71,7 @@ class Session:
     data_gain_mm2: float | None
     seconds: float
     whole_gain_sd_mm2: float | None = None
+    measure: str = "position"
 
     @property
     def before(self) -> bool:
@@ -78,8 +84,8 @@ class Session:
         return self.guard and self.holds
 
 
-def run(where: str, truth: str, seed: int, sigma: float) -> Session:
-    """One session (``sigma`` in metres)."""
+def run(where: str, truth: str, seed: int, sigma: float, measure: str = "position") -> Session:
+    """One session (``sigma`` in metres, and radians per axis of orientation for pose data)."""
     robot = pincal.load_robot("ur5")
     true = pincal.random_truth(robot, seed, tool_distance=(0.05, 0.05))
     if truth == "exact":
@@ -87,9 +93,11 @@ def run(where: str, truth: str, seed: int, sigma: float) -> Session:
     rng = np.random.default_rng([seed, N_FIT, 1])
     q_fit = robot.random_configurations(N_FIT, rng, MARGINS[where])
     q_new = robot.random_configurations(N_NEW, rng, 0.0)
-    fit, new = true.measure(q_fit, sigma, seed=seed + 7), true.measure(q_new, sigma, seed=seed + 8)
+    turn = sigma if measure == "pose" else None
+    fit, new = (true.measure(q, sigma, turn, seed=seed + k) for q, k in ((q_fit, 7), (q_new, 8)))
     start = time.perf_counter()
-    cal = pincal.calibrate(robot, fit, params="auto", test=new, pull=pincal.Pull(force_fit=True))
+    forced = pincal.Pull(force_fit=True)
+    cal = pincal.calibrate(robot, fit, measure=measure, params="auto", test=new, pull=forced)
     seconds = time.perf_counter() - start
     assert cal.guard is not None and cal.test_after is not None and cal.test_before is not None
     beyond = cal.guard.extrapolation
@@ -97,7 +105,8 @@ def run(where: str, truth: str, seed: int, sigma: float) -> Session:
     own = None if beyond is None else beyond.data_gain_mm2
     ratio = cal.test_after.rms_mm / cal.test_before.rms_mm
     sd = None if beyond is None else beyond.whole_gain_sd_mm2
-    return Session(where, truth, seed, cal.guard.reliable, cal.guard.holds, ratio, whole, own, seconds, sd)
+    verdicts = (cal.guard.reliable, cal.guard.holds)
+    return Session(where, truth, seed, *verdicts, ratio, whole, own, seconds, sd, measure)
 
 
 def _rule(group: list[Session], rule: str) -> list[object]:
@@ -219,6 +228,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--first-seed", type=int, default=0, help="seeds run: first-seed .. + sessions - 1")
     parser.add_argument("--sigma", type=float, default=0.05, help="noise per axis [mm]")
     parser.add_argument("--cost", type=int, default=5, help="runs of the cost measurement (0: none)")
+    parser.add_argument("--measure", default="position", choices=("position", "pose", "distance"))
     parser.add_argument("--json")
     parser.add_argument("--markdown")
     args = parser.parse_args(argv)
@@ -227,7 +237,7 @@ def main(argv: list[str] | None = None) -> int:
     tasks = [(where, truth, seed) for where, truth in GROUPS for seed in seeds]
 
     def task(k: int) -> Session:
-        return run(*tasks[k], args.sigma * 1e-3)
+        return run(*tasks[k], args.sigma * 1e-3, args.measure)
 
     start = time.perf_counter()
     sessions = parallel_map(task, len(tasks))

@@ -1,7 +1,9 @@
 """The guard sees extrapolation: a fit on poses in a small part of each joint's range that passes
 the guard on its own poses, but is worse than the nominal model across the joint limits, is
 refused (the nominal geometry exported) unless forced; a fit of a real error over the whole
-range is still exported; the report and the summary say which joint ranges the data cover."""
+range is still exported; the report and the summary say which joint ranges the data cover.
+Distance data are checked on the distances between configurations across the limits, pose data
+with their orientation rows."""
 
 from __future__ import annotations
 
@@ -13,12 +15,18 @@ import pytest
 
 import pincal
 from pincal.data.dataset import Dataset
+from pincal.identify.extrapolation import Posterior, expected_gain, predicted_by
+from pincal.identify.measurements import Problem
+from pincal.identify.solver import set_up
 
 NOISE = 5e-5  # per axis [m]
 NARROW = 0.47  # margin of each range left out at both ends: poses in the central 6 %
 #: Seeds whose narrow-range fit on an exact URDF passes the guard on its own poses (the guard's
 #: own false exports, a few per hundred sessions): the cases the extrapolation check is for.
 PASSING_SEEDS = (100, 143, 193)
+#: Seeds whose fit of the distances between 30 poses over the whole range of an exact URDF passes
+#: the guard and predicts new poses' distances worse than the nominal model.
+DISTANCE_SEEDS = (10, 13)
 WORSE = 1.05
 
 
@@ -40,11 +48,14 @@ def _session(seed: int, exact: bool, margin: float) -> tuple[Dataset, Dataset]:
 
 
 @cache
-def _calibrations(seed: int, exact: bool, margin: float) -> tuple[pincal.Calibration, pincal.Calibration]:
+def _calibrations(
+    seed: int, exact: bool, margin: float, measure: str = "position"
+) -> tuple[pincal.Calibration, pincal.Calibration]:
     """The default call and the forced one."""
     fit, new = _session(seed, exact, margin)
-    default = pincal.calibrate(_robot(), fit, params="auto", test=new)
-    forced = pincal.calibrate(_robot(), fit, params="auto", test=new, pull=pincal.Pull(force_fit=True))
+    options = dict(measure=measure, params="auto", test=new)
+    default = pincal.calibrate(_robot(), fit, **options)
+    forced = pincal.calibrate(_robot(), fit, **options, pull=pincal.Pull(force_fit=True))
     return default, forced
 
 
@@ -58,6 +69,33 @@ def test_narrow_range_fit_of_an_exact_urdf_is_refused(seed: int) -> None:
     assert not default.guard.kept_fit
     assert default.guard.extrapolation is not None and not default.guard.extrapolation.holds
     np.testing.assert_array_equal(default.theta, default.nominal_theta)  # the nominal geometry
+
+
+@pytest.mark.parametrize("seed", DISTANCE_SEEDS)
+def test_distance_fit_worse_across_the_limits_is_refused(seed: int) -> None:
+    default, forced = _calibrations(seed, True, 0.05, "distance")
+    assert forced.guard is not None and default.guard is not None
+    assert forced.guard.reliable, "the guard alone exports this fit: the case the check is for"
+    assert forced.test_after is not None and forced.test_before is not None
+    assert forced.test_after.rms_mm > WORSE * forced.test_before.rms_mm, "the distances are worse"
+    assert default.guard.extrapolation is not None and not default.guard.extrapolation.holds
+    assert not default.guard.kept_fit
+    np.testing.assert_array_equal(default.theta, default.nominal_theta)
+
+
+@pytest.mark.parametrize("measure", ["distance", "pose"])
+def test_whole_range_fit_of_a_real_error_is_checked_and_exported(measure: str) -> None:
+    fit, new = _session(0, False, 0.05)
+    if measure == "pose":
+        true = pincal.random_truth(_robot(), 0, tool_distance=(0.05, 0.05))
+        fit = true.measure(fit.q, NOISE, NOISE, seed=7)
+        new = true.measure(new.q, NOISE, NOISE, seed=8)
+    cal = pincal.calibrate(_robot(), fit, measure=measure, params="auto", test=new)
+    assert cal.guard is not None and cal.guard.kept_fit
+    beyond = cal.guard.extrapolation
+    assert beyond is not None and beyond.holds and beyond.whole_gain_mm2 > 0
+    assert cal.test_after is not None and cal.test_before is not None
+    assert cal.test_after.rms_mm < cal.test_before.rms_mm
 
 
 @pytest.mark.parametrize("seed", PASSING_SEEDS[:1])
@@ -94,3 +132,39 @@ def test_the_report_says_what_was_refused_and_where_the_data_are() -> None:
     assert region["narrower_than_limits"] == list(_robot().joint_names)
     text = pincal.summary(default, fit, new)
     assert "holds for joint ranges" in text and "not across the joint limits" in text
+
+
+def _problem(measure: str) -> tuple[Problem, np.ndarray]:
+    """A problem of 10 simulated poses and a θ near its start."""
+    robot = _robot()
+    rng = np.random.default_rng(4)
+    true = pincal.random_truth(robot, 4, tool_distance=(0.05, 0.05))
+    turn = NOISE if measure == "pose" else None
+    data = true.measure(robot.random_configurations(10, rng), NOISE, turn, seed=5)
+    problem = set_up(robot, data, "placements", measure).problem
+    return problem, problem.initial_theta() + rng.normal(0.0, 1e-3, problem.n_params)
+
+
+@pytest.mark.parametrize(("measure", "rows"), [("position", 3 * 7), ("pose", 6 * 7), ("distance", 21)])
+def test_the_rows_drawn_across_the_limits_measure_what_theta_predicts(measure: str, rows: int) -> None:
+    problem, theta = _problem(measure)
+    q = _robot().random_configurations(7, np.random.default_rng(6))
+    sampled = predicted_by(problem, theta, q)
+    assert sampled.residuals(theta).shape == (rows,)
+    np.testing.assert_allclose(sampled.residuals(theta), 0.0, atol=1e-12)
+    other = theta + np.random.default_rng(7).normal(0.0, 1e-4, len(theta))
+    moved = predicted_by(problem, other, q).residuals(theta)
+    np.testing.assert_allclose(moved, -sampled.residuals(other), atol=1e-9)
+
+
+def test_pose_data_count_the_orientation_across_the_limits() -> None:
+    problem, nominal = _problem("pose")
+    turned = nominal.copy()
+    turned[problem.names.index("tool.rx")] += 1e-3  # the tool's orientation alone [rad]
+    every = np.ones(len(nominal), dtype=bool)
+    post = Posterior(nominal, turned, 1.0, every, np.zeros((len(nominal), len(nominal))))
+    q = _robot().random_configurations(9, np.random.default_rng(8))
+    gain, spread = expected_gain(problem, turned, post, q, spread=True)
+    weight = problem.measurement.rotation_weight  # [m/rad]
+    assert gain == pytest.approx((weight * 1e-3) ** 2, rel=1e-6)  # the rotation rows' whole gain
+    assert spread == 0.0

@@ -7,14 +7,16 @@ are not.
 
 The yardstick is the posterior of *every* geometric correction (with the registration, tool and
 the fit's effect), pulled toward the URDF with the weight of largest evidence
-(:mod:`pincal.identify.prior`), linearised at the nominal model: the true tip position at a
-configuration ``q`` is ``t(q) ~ N(m(q), V(q))``, ``m`` the posterior mean's prediction. With
-``n(q)`` and ``f(q)`` the nominal model's and the fit's predicted tip positions (each with its own
-registration and tool), the fit's gain in squared error, ``|t - n|² - |t - f|²``, has the
-posterior expectation ``|m - n|² - |m - f|²`` (``V`` cancels). The fit holds when the mean of it
-over configurations drawn across the joint limits is above
-:data:`~pincal.identify.validity.Z_SPREAD` of its posterior standard deviations (:func:`expected_gain`):
-where the data leave the posterior wide, its mean is a poor yardstick too.
+(:mod:`pincal.identify.prior`), linearised at the nominal model: the true rows at a configuration
+``q`` (the tip position in the instrument's frame; for pose data the weighted rotation rows too)
+are ``t(q) ~ N(m(q), V(q))``, ``m`` the posterior mean's prediction. With ``n(q)`` and ``f(q)``
+the rows the nominal model and the fit predict (each with its own registration and tool), the
+fit's gain in squared error, ``|t - n|² - |t - f|²``, has the posterior expectation
+``|m - n|² - |m - f|²`` (``V`` cancels). The fit holds when the mean of it over configurations
+drawn across the joint limits is above :data:`~pincal.identify.validity.Z_SPREAD` of its
+posterior standard deviations (:func:`expected_gain`): where the data leave the posterior wide,
+its mean is a poor yardstick too. Distance data have no instrument frame: their rows are the
+distances between every two of the configurations, which no registration changes.
 
 Why not the fit's own covariance: ``|Δ̂|² - 2 tr(J Σ Jᵀ)`` (``Δ̂ = f - n``, ``Σ`` the fit's
 posterior covariance) is unbiased only for parameters not chosen on the same data. After the
@@ -23,8 +25,7 @@ on the exported sessions with an exact URDF ``|Δ̂|²`` was 5 to 7 times ``tr(J
 limits: that estimate kept all 6 of the fits that were 1.3 to 5.3 times worse than the nominal
 model. The posterior of every correction knows nothing of the choice, and refused all 6.
 
-Only data in an instrument's frame (position, pose) are checked: distance and fixed-point data
-predict no tip position in one frame.
+Fixed-point data are not checked: their rows belong to the sockets the poses were measured in.
 """
 
 from __future__ import annotations
@@ -37,6 +38,7 @@ from pincal.data.dataset import every_marker
 from pincal.identify.chunked import normal_terms
 from pincal.identify.measurements import Problem
 from pincal.identify.prior import WEIGHTS, evidence_curve, pulled
+from pincal.identify.registration import quaternions
 from pincal.identify.solver import Setup
 from pincal.identify.validity import Extrapolation
 
@@ -44,11 +46,13 @@ from pincal.identify.validity import Extrapolation
 SAMPLES = 60
 #: Above this many fitted poses, the gain on them is the mean over a random subset of them.
 OWN_POSES = 5_000
+#: For distance data (rows for every two poses), at most this many of the fitted poses.
+PAIRED_POSES = 200
 
 
 def check(setup: Setup, theta: np.ndarray, nominal: np.ndarray, free: np.ndarray) -> Extrapolation | None:
-    """The fit ``theta`` (unknowns ``free``) against the registration-only ``nominal`` across the
-    joint limits and on the fitted poses; None for data without an instrument frame.
+    """The fit ``theta`` (unknowns ``free``) against the ``nominal`` model (its registration and
+    tool fitted) across the joint limits and on the fitted poses; None for fixed-point data.
 
     Args:
         setup: the problem.
@@ -58,14 +62,15 @@ def check(setup: Setup, theta: np.ndarray, nominal: np.ndarray, free: np.ndarray
     """
     problem = setup.problem
     robot, data = problem.model.robot, problem.data
-    if not problem.measurement.measure.registered:
+    if problem.measurement.measure.fixed_points:
         return None
     every = free | (np.arange(problem.n_params) < problem.model.n_params)  # every correction, pulled
     post = Posterior.of(setup, nominal, every)
     n = max(SAMPLES, 2 * problem.n_params)
     rng = np.random.default_rng(0)
     q_whole = robot.random_configurations(n, rng)
-    q_own = data.q if len(data) <= OWN_POSES else data.q[rng.choice(len(data), OWN_POSES, replace=False)]
+    own_cap = PAIRED_POSES if problem.measurement.measure.by_pairs else OWN_POSES
+    q_own = data.q if len(data) <= own_cap else data.q[rng.choice(len(data), own_cap, replace=False)]
     whole, spread = expected_gain(problem, theta, post, q_whole, spread=True)
     own, _ = expected_gain(problem, theta, post, q_own)
     return Extrapolation(whole * 1e6, own * 1e6, n, post.weight, spread * 1e6)
@@ -114,23 +119,35 @@ def expected_gain(
     problem: Problem, fit: np.ndarray, post: Posterior, q: np.ndarray, spread: bool = False
 ) -> tuple[float, float]:
     """Mean over the configurations ``q`` (N, n) [rad or m] of the fit's gain over the nominal model
-    in squared tip-position error, expected under the posterior: ``|m - n|² - |m - f|²`` [m²],
-    ``n``, ``f`` and ``m`` the tip positions the nominal model, the fit and the posterior mean
-    predict (see the module); with ``spread``, its posterior standard deviation [m²] (else 0).
+    in squared error of the measured rows, expected under the posterior: ``|m - n|² - |m - f|²``
+    [m²], ``n``, ``f`` and ``m`` the rows (tip positions; with orientation data the weighted
+    rotation rows too; for distance data the distances between every two of the configurations)
+    that the nominal model, the fit and the posterior mean predict (see the module); a mean per
+    configuration, for distance data per pair. With ``spread``, its posterior standard deviation
+    [m²] (else 0).
 
-    The mean gain is linear in the true tip positions ``t``: ``2 Σ (f - n)·t / N`` plus what does
-    not depend on ``t``; with ``t = m + J δ``, ``δ`` the posterior's spread of the unknowns, its
-    variance is ``4 gᵀ Σ g / N²`` with ``g = Jᵀ (f - n)`` summed over the configurations.
+    The mean gain is linear in the true rows ``t``: ``2 Σ (f - n)·t / N`` plus what does not
+    depend on ``t``; with ``t = m + J δ``, ``δ`` the posterior's spread of the unknowns, its
+    variance is ``4 gᵀ Σ g / N²`` with ``g = Jᵀ (f - n)`` summed over the rows.
     """
-    quats = np.tile([1.0, 0.0, 0.0, 0.0], (len(q), 1)) if problem.data.has_orientation else None
-    blank = every_marker(problem.data, q, quats)
-    sampled = Problem(problem.model, replace(problem.measurement, pairs=None), blank, problem.extension)
-    nominal, fitted, mean = (sampled.predict(theta)[0] for theta in (post.nominal, fit, post.mean))
-    gain = float((np.sum((mean - nominal) ** 2) - np.sum((mean - fitted) ** 2)) / len(q))
+    sampled = predicted_by(problem, post.mean, q)
+    off_nominal, off_fit = sampled.residuals(post.nominal), sampled.residuals(fit)  # n - m, f - m
+    count = len(sampled.pairs) if problem.measurement.measure.by_pairs else len(q)
+    gain = float((off_nominal @ off_nominal - off_fit @ off_fit) / count)
     if not spread:
         return gain, 0.0
-    width = problem.measurement.measure.width
-    jac = sampled.jacobian(post.mean, post.every)
-    jac = jac[np.arange(len(jac)) % width < 3] if width > 3 else jac  # the position rows
-    along = jac.T @ (fitted - nominal).reshape(-1)
-    return gain, float(2.0 * np.sqrt(max(along @ post.covariance @ along, 0.0)) / len(q))
+    along = sampled.jacobian(post.mean, post.every).T @ (off_fit - off_nominal)
+    return gain, float(2.0 * np.sqrt(max(along @ post.covariance @ along, 0.0)) / count)
+
+
+def predicted_by(problem: Problem, theta: np.ndarray, q: np.ndarray) -> Problem:
+    """``problem`` at the configurations ``q`` (N, n) [rad or m], measuring what ``theta``
+    predicts there (for distance data, between every two of them): its residuals at another θ
+    are that θ's rows less ``theta``'s."""
+    kind = problem.measurement.measure
+    quats = np.tile([1.0, 0.0, 0.0, 0.0], (len(q), 1)) if problem.data.has_orientation else None
+    blank = every_marker(problem.data, q, quats)
+    at_q = Problem(problem.model, replace(problem.measurement, pairs=None), blank, problem.extension)
+    _, rot, pos = kind.frames(at_q, theta, None)
+    seen = replace(blank, points=pos, quaternions=None if quats is None else quaternions(rot))
+    return at_q.on(seen)

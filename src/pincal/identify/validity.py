@@ -92,8 +92,9 @@ class Extrapolation:
     """The fit's expected gain over the nominal model across the joint limits and on its own poses.
 
     The expected gain at a configuration ``q`` is ``|m(q) - n(q)|² - |m(q) - f(q)|²``: ``n``,
-    ``f`` and ``m`` the tip positions the nominal model, the fit and the posterior mean of every
-    correction predict (:mod:`pincal.identify.extrapolation`).
+    ``f`` and ``m`` the rows (tip positions; for pose data the weighted rotation rows too; for
+    distance data the distances between every two configurations) that the nominal model, the fit
+    and the posterior mean of every correction predict (:mod:`pincal.identify.extrapolation`).
 
     Attributes:
         whole_gain_mm2: mean expected gain over configurations drawn across the joint limits [mm²].
@@ -140,9 +141,10 @@ class Extrapolation:
             "posterior_weight": self.weight,
             "holds": self.holds,
             "by": "mean over configurations drawn across the joint limits of |m - n|^2 - |m - f|^2: n, f "
-            "and m the tip positions the nominal model, the fit and the posterior mean of every correction "
-            f"(pulled with posterior_weight) predict; holds above {Z_SPREAD:g} of its posterior standard "
-            "deviations",
+            "and m the rows the nominal model, the fit and the posterior mean of every correction "
+            "(pulled with posterior_weight) predict: tip positions, for pose data with the weighted "
+            "rotation rows, for distance data the distances between every two configurations (the gain "
+            f"then per pair); holds above {Z_SPREAD:g} of its posterior standard deviations",
         }
 
 
