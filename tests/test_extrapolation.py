@@ -15,7 +15,7 @@ import pytest
 
 import pincal
 from pincal.data.dataset import Dataset
-from pincal.identify.extrapolation import Posterior, expected_gain, predicted_by
+from pincal.identify.extrapolation import Posterior, expected_gain
 from pincal.identify.measurements import Problem
 from pincal.identify.solver import set_up
 
@@ -149,11 +149,11 @@ def _problem(measure: str) -> tuple[Problem, np.ndarray]:
 def test_the_rows_drawn_across_the_limits_measure_what_theta_predicts(measure: str, rows: int) -> None:
     problem, theta = _problem(measure)
     q = _robot().random_configurations(7, np.random.default_rng(6))
-    sampled = predicted_by(problem, theta, q)
+    sampled = problem.measuring(theta, q)
     assert sampled.residuals(theta).shape == (rows,)
     np.testing.assert_allclose(sampled.residuals(theta), 0.0, atol=1e-12)
     other = theta + np.random.default_rng(7).normal(0.0, 1e-4, len(theta))
-    moved = predicted_by(problem, other, q).residuals(theta)
+    moved = problem.measuring(other, q).residuals(theta)
     np.testing.assert_allclose(moved, -sampled.residuals(other), atol=1e-9)
 
 

@@ -30,15 +30,13 @@ Fixed-point data are not checked: their rows belong to the sockets the poses wer
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
-from pincal.data.dataset import every_marker
 from pincal.identify.chunked import normal_terms
 from pincal.identify.measurements import Problem
 from pincal.identify.prior import WEIGHTS, evidence_curve, pulled
-from pincal.identify.registration import quaternions
 from pincal.identify.solver import Setup
 from pincal.identify.validity import Extrapolation
 
@@ -130,7 +128,7 @@ def expected_gain(
     depend on ``t``; with ``t = m + J δ``, ``δ`` the posterior's spread of the unknowns, its
     variance is ``4 gᵀ Σ g / N²`` with ``g = Jᵀ (f - n)`` summed over the rows.
     """
-    sampled = predicted_by(problem, post.mean, q)
+    sampled = problem.measuring(post.mean, q)
     off_nominal, off_fit = sampled.residuals(post.nominal), sampled.residuals(fit)  # n - m, f - m
     count = len(sampled.pairs) if problem.measurement.measure.by_pairs else len(q)
     gain = float((off_nominal @ off_nominal - off_fit @ off_fit) / count)
@@ -138,16 +136,3 @@ def expected_gain(
         return gain, 0.0
     along = sampled.jacobian(post.mean, post.every).T @ (off_fit - off_nominal)
     return gain, float(2.0 * np.sqrt(max(along @ post.covariance @ along, 0.0)) / count)
-
-
-def predicted_by(problem: Problem, theta: np.ndarray, q: np.ndarray) -> Problem:
-    """``problem`` at the configurations ``q`` (N, n) [rad or m], measuring what ``theta``
-    predicts there (for distance data, between every two of them): its residuals at another θ
-    are that θ's rows less ``theta``'s."""
-    kind = problem.measurement.measure
-    quats = np.tile([1.0, 0.0, 0.0, 0.0], (len(q), 1)) if problem.data.has_orientation else None
-    blank = every_marker(problem.data, q, quats)
-    at_q = Problem(problem.model, replace(problem.measurement, pairs=None), blank, problem.extension)
-    _, rot, pos = kind.frames(at_q, theta, None)
-    seen = replace(blank, points=pos, quaternions=None if quats is None else quaternions(rot))
-    return at_q.on(seen)

@@ -12,15 +12,14 @@ reason: no effect on the measurements, or the kept parameters that absorb it.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
 from pincal.data.checks import spread
-from pincal.data.dataset import Dataset, every_marker
+from pincal.data.dataset import Dataset
 from pincal.errors import IdentifiabilityError
 from pincal.identify.measurements import Problem
-from pincal.identify.registration import quaternions
 from pincal.kinematics.chain import Chain, forward
 from pincal.robot.robots import Robot
 
@@ -196,12 +195,7 @@ def check_rank(
     robot, data = problem.model.robot, problem.data
     n_ref = max(60, 2 * problem.n_params)
     q_ref = robot.random_configurations(n_ref, np.random.default_rng(0), margin=0.05)
-    quats = np.tile([1.0, 0.0, 0.0, 0.0], (n_ref, 1)) if data.has_orientation else None
-    blank = every_marker(data, q_ref, quats)
-    meas = replace(problem.measurement, pairs=None)
-    points, rotations = Problem(problem.model, meas, blank, problem.extension).predict(theta)
-    exact = replace(blank, points=points, quaternions=None if quats is None else quaternions(rotations))
-    reference = Problem(problem.model, meas, exact, problem.extension)
+    reference = problem.measuring(theta, q_ref)
     rank, lost = lost_parameters(jacobian, reference.jacobian(theta), problem.names, scale, candidates, rcond)
     if not lost or len(jacobian) <= rank:  # too few equations: the caller says so
         return rank

@@ -24,16 +24,18 @@ kind's rows are its class's (:mod:`pincal.identify.kinds`).
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 import pinocchio as pin
 
-from pincal.data.dataset import Dataset
+from pincal.data.dataset import Dataset, every_marker
 from pincal.data.pairs import all_pairs
 from pincal.identify import chunked
 from pincal.identify.fixed_points import point_index, point_means
 from pincal.identify.measurement import Measurement, check_markers, marker_points, unpack
+from pincal.identify.registration import quaternions
 from pincal.kinematics.chain import Frames, forward, stacked_dot, summed_columns, twist_columns
 from pincal.kinematics.effects import AnyEffect
 from pincal.kinematics.models import Model
@@ -128,6 +130,16 @@ class Problem:
     def on(self, data: Dataset) -> Problem:
         """The same problem on other poses (a block, a sample)."""
         return Problem(self.model, self.measurement, data, self.extension)
+
+    def measuring(self, theta: np.ndarray, q: np.ndarray) -> Problem:
+        """The same problem at the configurations ``q`` (N, n) [rad or m], measuring exactly what
+        ``theta`` predicts there (each marker; for distance data, between every two of them): its
+        residuals at another θ are that θ's rows less ``theta``'s."""
+        quats = np.tile([1.0, 0.0, 0.0, 0.0], (len(q), 1)) if self.data.has_orientation else None
+        blank = every_marker(self.data, q, quats)
+        at_q = Problem(self.model, replace(self.measurement, pairs=None), blank, self.extension)
+        _, rot, pos = self.measurement.measure.frames(at_q, theta, None)
+        return at_q.on(replace(blank, points=pos, quaternions=None if quats is None else quaternions(rot)))
 
     def forget_frames(self) -> None:
         """Drop the frames kept for the last θ (a block's, once used)."""
