@@ -28,6 +28,7 @@ from pincal.auto.screening import Linearised
 from pincal.identify import chunked
 from pincal.identify.folds import pose_folds
 from pincal.identify.measurements import Problem
+from pincal.identify.solver import set_up
 from pincal.identify.uncertainty import pose_std
 from pincal.kinematics import gravity
 from pincal.kinematics.effects import Extension, combined
@@ -197,3 +198,22 @@ def test_gravity_by_vectorised_configurations(
             gravity.gravity_torques(robot, q[10 * k : 10 * k + 10]), want[10 * k : 10 * k + 10]
         )
     assert sum(len(entry[3]) for entry in gravity._GRAVITY) <= 25 and len(gravity._GRAVITY) == 2
+
+
+def test_problems_on_the_same_poses_share_their_blocks(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The registration's, the fit's and the guard's problems on the same poses hold one copy of
+    the poses' blocks (each held its own: 100 MB a problem at 10⁶ pose rows), and what each block
+    computes is what it computed from its own copy."""
+    _tiny_blocks(monkeypatch)
+    robot = pincal.load_robot("ur5")
+    _, fit, _ = pincal.simulate(robot, n_fit=30, n_test=0, seed=4, rot_noise=5e-4)
+    one = set_up(robot, fit, "placements", "pose").problem
+    other = Problem(one.model, one.measurement, fit)
+    theta = one.initial_theta() + np.random.default_rng(4).normal(0.0, 1e-3, one.n_params)
+    for a, b in zip(chunked.blocks(one), chunked.blocks(other), strict=True):
+        assert a.data is b.data and a.measured_rotations is b.measured_rotations
+    starts = range(0, 30, 7)
+    own = [Problem(one.model, one.measurement, fit.subset(np.arange(s, min(s + 7, 30)))) for s in starts]
+    for block, alone in zip(chunked.blocks(one), own, strict=True):
+        np.testing.assert_array_equal(block.residuals(theta), alone.residuals(theta))
+    np.testing.assert_array_equal(fit.rotations(), fit.subset(np.arange(30)).rotations())

@@ -64,10 +64,20 @@ def blocks(problem: ProblemRows) -> list[ProblemRows]:
     """The problems on consecutive blocks of :data:`BLOCK_POSES` poses (made once per problem)."""
     made = problem.__dict__.get("_blocks")
     if made is None:
-        n = len(problem.data)
-        parts = [problem.data.subset(np.arange(a, min(a + BLOCK_POSES, n))) for a in range(0, n, BLOCK_POSES)]
-        made = [problem.on(part) for part in parts]
+        made = [problem.on(part) for part in data_blocks(problem.data)]
         problem.__dict__["_blocks"] = made
+    return made
+
+
+def data_blocks(data: Dataset) -> list[Dataset]:
+    """``data``'s consecutive blocks of :data:`BLOCK_POSES` poses, made once per data set: the
+    problems on the same poses (the registration's, the fit's, the guard's) share them rather
+    than each holding a copy of every pose."""
+    made = data.__dict__.get("_blocks")
+    if made is None:
+        n = len(data)
+        made = [data.subset(np.arange(a, min(a + BLOCK_POSES, n))) for a in range(0, n, BLOCK_POSES)]
+        data.__dict__["_blocks"] = made
     return made
 
 
