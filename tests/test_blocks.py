@@ -17,6 +17,7 @@ its rows' kinds taken wrong would show:
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 
 import numpy as np
 import pinocchio as pin
@@ -28,7 +29,7 @@ from pincal.auto.screening import Linearised
 from pincal.identify import chunked
 from pincal.identify.folds import pose_folds
 from pincal.identify.measurements import Problem
-from pincal.identify.solver import set_up
+from pincal.identify.solver import identifiable_set, set_up, solve
 from pincal.identify.uncertainty import pose_std
 from pincal.kinematics import gravity
 from pincal.kinematics.effects import Extension, combined
@@ -217,3 +218,26 @@ def test_problems_on_the_same_poses_share_their_blocks(monkeypatch: pytest.Monke
     for block, alone in zip(chunked.blocks(one), own, strict=True):
         np.testing.assert_array_equal(block.residuals(theta), alone.residuals(theta))
     np.testing.assert_array_equal(fit.rotations(), fit.subset(np.arange(30)).rotations())
+
+
+def test_robust_refit_by_blocks_is_the_refit_by_rows(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The soft-L1 refit (the outlier screen's, on its subset of poses) builds its triangle block
+    by block above BLOCK_POSES poses: the minimum of the dense rooted Jacobian's, to the solver's
+    tolerance (1 nm and 1 µrad; the plain least squares is micrometres away: the outlier)."""
+    robot = pincal.load_robot("ur5")
+    _, fit, _ = pincal.simulate(robot, n_fit=30, n_test=0, seed=6, rot_noise=5e-4)
+    fit = replace(fit, points=fit.points + np.where(np.arange(30) == 4, 2e-3, 0.0)[:, None])  # an outlier
+    setup = set_up(robot, fit, "placements", "pose")
+    start = setup.problem.initial_theta()
+    free = identifiable_set(setup, start).identifiable
+    dense, dense_result = solve(setup, start, free, "soft_l1", 1e-4)
+    monkeypatch.setattr(chunked, "BLOCK_POSES", 7)
+    seen: list[int] = []
+    rows = chunked.triangle
+    monkeypatch.setattr(chunked, "triangle", lambda *a, **k: seen.append(1) or rows(*a, **k))
+    blocked, blocked_result = solve(set_up(robot, fit, "placements", "pose"), start, free, "soft_l1", 1e-4)
+    assert seen, "the refit did not build its triangle by blocks"
+    np.testing.assert_allclose(blocked, dense, rtol=0.0, atol=1e-9)
+    assert blocked_result.cost == pytest.approx(dense_result.cost, rel=1e-9)
+    plain, _ = solve(setup, start, free)
+    assert np.max(np.abs(plain - dense)) > 1e-6, "the outlier moves a plain fit: the test can tell"

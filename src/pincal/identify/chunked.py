@@ -28,7 +28,7 @@ from typing import Any, ClassVar, Protocol, TypeVar
 import numpy as np
 
 from pincal.data.dataset import Dataset
-from pincal.identify.lm import triangle_of
+from pincal.identify.lm import soft_l1_rows, soft_l1_slopes, triangle_of
 from pincal.identify.rows import ProblemRows
 from pincal.kinematics.chain import Frames
 
@@ -121,17 +121,27 @@ def triangle(
     free: np.ndarray,
     x_scale: np.ndarray,
     extra: tuple[np.ndarray, np.ndarray],
+    f_scale: float | None = None,
 ) -> np.ndarray:
     """The triangle R (P + 1, P + 1) of the QR of ``[J · x_scale, r]`` over the free columns,
-    with the rows ``extra`` (their Jacobian and residuals) below the data's, block by block."""
+    with the rows ``extra`` (their Jacobian and residuals) below the data's, block by block; with
+    ``f_scale`` [m], of the soft-L1 loss's rooted rows (:func:`pincal.identify.lm.soft_l1_roots`)."""
     cols = np.arange(problem.n_params)[free]
     tri = None
     for block in blocks(problem):
         r, j = block.rows(theta, cols)
         _forget(block)
-        tri = triangle_of(np.column_stack([j * x_scale, r]), tri)
+        tri = triangle_of(_stacked(j, r, x_scale, f_scale), tri)
     jac, res = extra
-    return triangle_of(np.column_stack([jac * x_scale, res]), tri)
+    return triangle_of(_stacked(jac, res, x_scale, f_scale), tri)
+
+
+def _stacked(jac: np.ndarray, res: np.ndarray, x_scale: np.ndarray, f_scale: float | None) -> np.ndarray:
+    """``[J · x_scale, r]``, of the rooted rows when ``f_scale`` is given."""
+    if f_scale is None:
+        return np.column_stack([jac * x_scale, res])
+    rooted = jac * soft_l1_slopes(res, f_scale)[:, None] * x_scale
+    return np.column_stack([rooted, soft_l1_rows(res, f_scale)])
 
 
 def gram(problem: ProblemRows, theta: np.ndarray, free: np.ndarray) -> np.ndarray:
@@ -184,17 +194,23 @@ def lm_triangle(
     free: np.ndarray,
     x_scale: np.ndarray,
     prior: tuple[np.ndarray, np.ndarray],
+    f_scale: float | None = None,
 ) -> Callable[[np.ndarray], np.ndarray] | None:
     """For :func:`pincal.identify.lm.levenberg_marquardt` on a large problem (else None): ``sub`` (the free
     unknowns) -> the triangle of ``[J r]`` with the solver's prior rows ``w · (sub - nominal)`` on
-    the first free unknowns below the data's (``prior``: their weights ``w`` and nominal values)."""
-    if not is_large(problem):
+    the first free unknowns below the data's (``prior``: their weights ``w`` and nominal values).
+    With ``f_scale`` [m], of the soft-L1 loss's rooted rows, already above :data:`BLOCK_POSES`
+    poses: the robust refit runs on a subset of :data:`SAMPLE_POSES`, whose Jacobian and its
+    rooted, scaled and stacked copies took 0.6 GB at once."""
+    blockwise = problem.measurement.measure.registered and len(problem.data) > BLOCK_POSES
+    if not (is_large(problem) or (f_scale is not None and blockwise)):
         return None
     weights, nominal = prior
     held = np.eye(len(weights), len(x_scale)) * weights[:, None]
 
     def make(sub: np.ndarray) -> np.ndarray:
-        return triangle(problem, full(sub), free, x_scale, (held, weights * (sub[: len(weights)] - nominal)))
+        extra = (held, weights * (sub[: len(weights)] - nominal))
+        return triangle(problem, full(sub), free, x_scale, extra, f_scale)
 
     return make
 

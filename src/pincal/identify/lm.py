@@ -173,11 +173,20 @@ def soft_l1_roots(residuals: Vector, jacobian: Vector, f_scale: float) -> tuple[
     """
 
     def rooted(x: np.ndarray) -> np.ndarray:
-        r = residuals(x)
-        return r * np.sqrt(2.0 / (np.sqrt(1.0 + (r / f_scale) ** 2) + 1.0))
+        return soft_l1_rows(residuals(x), f_scale)
 
     def rooted_jacobian(x: np.ndarray) -> np.ndarray:
-        root = np.sqrt(1.0 + (residuals(x) / f_scale) ** 2)
-        return jacobian(x) * (np.sqrt((root + 1.0) / 2.0) / root)[:, None]
+        return jacobian(x) * soft_l1_slopes(residuals(x), f_scale)[:, None]
 
     return rooted, rooted_jacobian
+
+
+def soft_l1_rows(res: np.ndarray, f_scale: float) -> np.ndarray:
+    """The rows of :func:`soft_l1_roots` of the residuals ``res``: ``r √(2 / (s + 1))``."""
+    return res * np.sqrt(2.0 / (np.sqrt(1.0 + (res / f_scale) ** 2) + 1.0))
+
+
+def soft_l1_slopes(res: np.ndarray, f_scale: float) -> np.ndarray:
+    """Each of those rows' derivative over its residual's, ``√((s + 1) / 2) / s``."""
+    root = np.sqrt(1.0 + (res / f_scale) ** 2)
+    return np.sqrt((root + 1.0) / 2.0) / root

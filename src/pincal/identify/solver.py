@@ -194,7 +194,10 @@ def solve(
         )
     elif loss == "soft_l1" and len(problem.residuals(theta)) >= free.sum():  # the outlier screen's refit
         rooted, rooted_jacobian = soft_l1_roots(residuals, jacobian, f_scale)
-        result = levenberg_marquardt(rooted, rooted_jacobian, theta[free], x_scale, max_nfev=MAX_EVALUATIONS)
+        big = chunked.lm_triangle(problem, full, free, x_scale, (prior, nominal[geometric]), f_scale)
+        result = levenberg_marquardt(
+            rooted, rooted_jacobian, theta[free], x_scale, max_nfev=MAX_EVALUATIONS, triangle=big
+        )
     else:  # another robust loss: SciPy's trust-region reflective, imported only then (start-up)
         from scipy.optimize import least_squares
 
