@@ -108,14 +108,13 @@ class Dataset:
 
     def rotations(self) -> np.ndarray:
         """Measured orientations as rotation matrices (N, 3, 3)."""
-        if self.quaternions is None:
-            raise DataError("the data has no orientation columns qw,qx,qy,qz")
         return self._rotations
 
     @functools.cached_property
     def _rotations(self) -> np.ndarray:
         """:meth:`rotations`, worked out once (each problem on the same poses asks for them)."""
-        assert self.quaternions is not None
+        if self.quaternions is None:
+            raise DataError("the data has no orientation columns qw,qx,qy,qz")
         w, x, y, z = (self.quaternions / np.linalg.norm(self.quaternions, axis=1, keepdims=True)).T
         return np.stack(
             [
