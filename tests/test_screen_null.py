@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import pincal
-from pincal.auto.screen_null import ALPHA, _noise, draws_for, held_out_rms, screen_null
+from pincal.auto.screen_null import ALPHA, _noise, draws_for, held_out_rms, least_squares_steps, screen_null
 from pincal.auto.screening import Linearised
 from pincal.kinematics.effects import EFFECTS, Extension
 
@@ -95,3 +95,18 @@ def test_a_large_problem_draws_its_null_on_a_subset(
     assert null is not None and null.draws == 99 and np.all(null.gains > 0)
     whole = screen_null(lin, pool, 99, seed=0)
     assert whole is not None and not np.array_equal(whole.gains, null.gains)
+
+
+def test_the_bordered_steps_are_the_least_squares_steps() -> None:
+    """Each candidate solved on the baseline's factor gives NumPy's least-squares step; a
+    candidate that repeats a baseline column (a singular take) gets the least-squares step too."""
+    rng = np.random.default_rng(3)
+    jac = rng.standard_normal((80, 14))
+    jac[:, 13] = jac[:, 2]  # the last candidate repeats a baseline column
+    gram, moment = jac.T @ jac, jac.T @ rng.standard_normal((80, 5))
+    base = np.arange(8)
+    takes = [base, np.r_[base, 8], np.r_[base, 9, 10], np.r_[base, 11, 12], np.r_[base, 13]]
+    steps = least_squares_steps(gram, moment, takes)
+    for take, step in zip(takes, steps, strict=True):
+        expected = np.linalg.lstsq(gram[np.ix_(take, take)], moment[take], rcond=1e-12)[0]
+        np.testing.assert_allclose(step, expected, rtol=1e-9, atol=1e-12)
