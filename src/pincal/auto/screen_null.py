@@ -152,19 +152,21 @@ def least_squares_steps(
     """
     base = takes[0]
     scale = float(np.max(np.diag(gram))) if len(gram) else 1.0
-    lower = np.linalg.cholesky(gram[np.ix_(base, base)]) if _safe(gram[np.ix_(base, base)], scale) else None
+    g_bb = gram[np.ix_(base, base)]
+    lower = np.linalg.cholesky(g_bb) if _safe(g_bb, scale) else None
     if lower is None or any(not np.array_equal(t[: len(base)], base) for t in takes[1:]):
         return [np.linalg.lstsq(gram[np.ix_(t, t)], moment[t], rcond=RCOND)[0] for t in takes]
     first = _cho_solve(lower, moment[base])
     steps = [first]
     for take in takes[1:]:
         extra = take[len(base) :]
-        across = _cho_solve(lower, gram[np.ix_(base, extra)])  # G_bb⁻¹ G_be
-        schur = gram[np.ix_(extra, extra)] - gram[np.ix_(extra, base)] @ across
+        g_eb = gram[np.ix_(extra, base)]
+        across = _cho_solve(lower, g_eb.T)  # G_bb⁻¹ G_be (the Gram matrix is symmetric)
+        schur = gram[np.ix_(extra, extra)] - g_eb @ across
         if not _safe(schur, scale):
             steps.append(np.linalg.lstsq(gram[np.ix_(take, take)], moment[take], rcond=RCOND)[0])
             continue
-        tail = np.linalg.solve(schur, moment[extra] - gram[np.ix_(extra, base)] @ first)
+        tail = np.linalg.solve(schur, moment[extra] - g_eb @ first)
         steps.append(np.vstack([first - across @ tail, tail]))
     return steps
 

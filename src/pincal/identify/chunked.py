@@ -53,11 +53,12 @@ BLOCK_POSES = 20_000
 SAMPLE_POSES = 50_000
 
 
-def is_large(problem: ProblemRows) -> bool:
-    """Whether ``problem`` works block by block (see the module docstring)."""
+def is_large(problem: ProblemRows, above: int | None = None) -> bool:
+    """Whether ``problem`` works block by block (see the module docstring): more than ``above``
+    poses (default :data:`LARGE_POSES`) of a kind split by poses, and not solved whole."""
     if not getattr(problem, "blockwise", True):  # a problem that says it is solved whole
         return False
-    return problem.measurement.measure.registered and len(problem.data) > LARGE_POSES
+    return problem.measurement.measure.registered and len(problem.data) > (above or LARGE_POSES)
 
 
 def blocks(problem: ProblemRows) -> list[ProblemRows]:
@@ -202,8 +203,7 @@ def lm_triangle(
     With ``f_scale`` [m], of the soft-L1 loss's rooted rows, already above :data:`BLOCK_POSES`
     poses: the robust refit runs on a subset of :data:`SAMPLE_POSES`, whose Jacobian and its
     rooted, scaled and stacked copies took 0.6 GB at once."""
-    blockwise = problem.measurement.measure.registered and len(problem.data) > BLOCK_POSES
-    if not (is_large(problem) or (f_scale is not None and blockwise)):
+    if not is_large(problem, BLOCK_POSES if f_scale is not None else None):
         return None
     weights, nominal = prior
     held = np.eye(len(weights), len(x_scale)) * weights[:, None]

@@ -15,6 +15,7 @@ from dataclasses import asdict, dataclass, replace
 import numpy as np
 
 from pincal.data.dataset import Dataset
+from pincal.identify import chunked
 from pincal.identify.fixed_points import placement, point_errors, point_means
 from pincal.identify.measurement import Measurement
 from pincal.identify.measurements import Problem
@@ -79,10 +80,6 @@ class ErrorStats:
         return {k: v for k, v in asdict(self).items() if v is not None or (fixed and k.startswith("point_"))}
 
 
-#: Poses evaluated at once (a large set is evaluated by blocks).
-BLOCK_POSES = 20_000
-
-
 def pose_errors(
     model: Model,
     measurement: Measurement,
@@ -91,18 +88,11 @@ def pose_errors(
     extension: AnyEffect | None = None,
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """Per-pose position error norms [m] and orientation error angles [rad] (pose data); a large
-    position or pose set by blocks of :data:`BLOCK_POSES` (its frames are never all held)."""
-    if len(data) > BLOCK_POSES and measurement.measure.registered:
-        parts = [
-            pose_errors(
-                model,
-                measurement,
-                theta,
-                data.subset(np.arange(a, min(a + BLOCK_POSES, len(data)))),
-                extension,
-            )
-            for a in range(0, len(data), BLOCK_POSES)
-        ]
+    position or pose set by the blocks of :func:`pincal.identify.chunked.data_blocks` (its frames
+    are never all held; the fit's problems have made those blocks already)."""
+    if len(data) > chunked.BLOCK_POSES and measurement.measure.registered:
+        blocks = chunked.data_blocks(data)
+        parts = [pose_errors(model, measurement, theta, part, extension) for part in blocks]
         angles = [b for _, b in parts if b is not None]
         return np.concatenate([a for a, _ in parts]), np.concatenate(angles) if angles else None
     problem = Problem(model, measurement, data, extension)
