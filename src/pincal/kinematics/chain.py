@@ -19,7 +19,9 @@ Jacobian rows are in Pinocchio's order (v, ω). Tip Jacobians are LOCAL_WORLD_AL
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -142,43 +144,77 @@ def forward(chain: Chain, q: np.ndarray, row_tips: np.ndarray | None = None) -> 
     rotations = np.empty((2 * n + 1, n_poses, 3, 3))
     translations = np.empty((2 * n + 1, n_poses, 3))
     rotations[0], translations[0] = chain.placements[0].rotation, chain.placements[0].translation
-    rot, pos = rotations[0], translations[0]
+    turn = _Turns(chain.axes, q)
     for j in range(n):
-        rot, pos = _turned(rot, pos, chain.axes[j], q[:, j])
-        rotations[2 * j + 1], translations[2 * j + 1] = rot, pos
-        c_next = chain.placements[j + 1]
-        pos = pos + stacked_dot(rot, c_next.translation[:, None])[:, :, 0]
-        rot = stacked_dot(rot, c_next.rotation)
-        rotations[2 * j + 2], translations[2 * j + 2] = rot, pos
+        turn.apply(j, rotations[2 * j], translations[2 * j], rotations[2 * j + 1], translations[2 * j + 1])
+        _moved(
+            rotations[2 * j + 1],
+            translations[2 * j + 1],
+            chain.placements[j + 1],
+            rotations[2 * j + 2],
+            translations[2 * j + 2],
+        )
     return Frames(rotations, translations)
 
 
-def _moved(rot: np.ndarray, pos: np.ndarray, c: pin.SE3) -> tuple[np.ndarray, np.ndarray]:
-    """Frames (N, 3, 3), (N, 3) followed by the constant placement ``c``."""
-    return stacked_dot(rot, c.rotation), pos + stacked_dot(rot, c.translation[:, None])[:, :, 0]
+def _moved(rot: np.ndarray, pos: np.ndarray, c: pin.SE3, out_rot: np.ndarray, out_pos: np.ndarray) -> None:
+    """Write the frames (N, 3, 3), (N, 3) followed by the constant placement ``c`` into ``out_rot``,
+    ``out_pos``."""
+    flat = rot.reshape(-1, 3)
+    out_rot[...] = (flat @ c.rotation).reshape(rot.shape)
+    np.add(pos, (flat @ c.translation).reshape(pos.shape), out=out_pos)
 
 
-def _turned(
-    rot: np.ndarray, pos: np.ndarray, axis: np.ndarray, q: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Frames (N, 3, 3), (N, 3) moved by a joint of local twist ``axis`` (6,) by ``q`` (N,): a
-    revolute joint through the frame's origin turns it by ``I + s K + (1 - c) K²``; about one of
-    the frame's own axes (most URDF joints), that mixes two columns of ``R``."""
-    v, w = axis[:3], axis[3:]
-    if not np.any(w):  # prismatic
-        return rot, pos + stacked_dot(rot, v[:, None])[:, :, 0] * q[:, None]
-    s, c = np.sin(q), np.cos(q)
-    along = np.flatnonzero(w)
-    if len(along) == 1 and abs(w[along[0]]) == 1.0:
-        i, j = ((1, 2), (2, 0), (0, 1))[along[0]]  # R · rotation about e_a: columns i, j mix
-        s = s * w[along[0]]
-        out = rot.copy()
-        out[:, :, i] = c[:, None] * rot[:, :, i] + s[:, None] * rot[:, :, j]
-        out[:, :, j] = c[:, None] * rot[:, :, j] - s[:, None] * rot[:, :, i]
-        return out, pos
-    k = skew(w)
-    rot_k = stacked_dot(rot, k)
-    return rot + s[:, None, None] * rot_k + (1.0 - c)[:, None, None] * stacked_dot(rot_k, k), pos
+@functools.lru_cache(maxsize=64)
+def _turn_kinds(axes: bytes, n: int) -> tuple[tuple[str, Any], ...]:
+    """How each of ``n`` joints of local twists ``axes`` (bytes of (n, 6)) moves its frame:
+    ``("prismatic", v)``; ``("about", (i, k, sign))``, a revolute joint about one of the
+    frame's own axes, which mixes columns ``i`` and ``k`` of ``R``; ``("general", K)``, about
+    the unit axis of skew matrix ``K``."""
+    kinds: list[tuple[str, Any]] = []
+    for v, w in ((row[:3], row[3:]) for row in np.frombuffer(axes).reshape(n, 6)):
+        along = np.flatnonzero(w)
+        if along.size == 0:
+            kinds.append(("prismatic", v.copy()))
+        elif along.size == 1 and abs(w[along[0]]) == 1.0:
+            i, k = ((1, 2), (2, 0), (0, 1))[along[0]]
+            kinds.append(("about", (i, k, float(w[along[0]]))))
+        else:
+            kinds.append(("general", skew(w)))
+    return tuple(kinds)
+
+
+class _Turns:
+    """The joints' motions for a batch of joint values (N, n): sines and cosines taken once."""
+
+    def __init__(self, axes: np.ndarray, q: np.ndarray) -> None:
+        self.kinds = _turn_kinds(np.ascontiguousarray(axes, dtype=float).tobytes(), axes.shape[0])
+        self.q = q
+        self.sin, self.cos = np.sin(q.T)[:, :, None], np.cos(q.T)[:, :, None]  # (n, N, 1)
+
+    def apply(
+        self, j: int, rot: np.ndarray, pos: np.ndarray, out_rot: np.ndarray, out_pos: np.ndarray
+    ) -> None:
+        """Write the frames (N, 3, 3), (N, 3) moved by joint ``j`` into ``out_rot``, ``out_pos``: a
+        revolute joint through the frame's origin turns it by ``I + s K + (1 - c) K²``; about one
+        of the frame's own axes (most URDF joints), that mixes two columns of ``R``."""
+        kind, how = self.kinds[j]
+        if kind == "prismatic":
+            out_rot[...] = rot
+            np.add(pos, (rot @ how) * self.q[:, j, None], out=out_pos)
+            return
+        out_pos[...] = pos
+        s, c = self.sin[j], self.cos[j]
+        if kind == "about":
+            i, k, sign = how
+            s = s if sign > 0 else -s
+            out_rot[...] = rot
+            col_i, col_k = rot[:, :, i], rot[:, :, k]
+            out_rot[:, :, i] = c * col_i + s * col_k
+            out_rot[:, :, k] = c * col_k - s * col_i
+            return
+        rot_k = stacked_dot(rot, how)
+        out_rot[...] = rot + s[:, :, None] * rot_k + (1.0 - c)[:, :, None] * stacked_dot(rot_k, how)
 
 
 def forward_tree(chain: Chain, q: np.ndarray, row_tips: np.ndarray | None = None) -> Frames:
@@ -190,16 +226,15 @@ def forward_tree(chain: Chain, q: np.ndarray, row_tips: np.ndarray | None = None
     rotations = np.empty((2 * n + n_tips, n_poses, 3, 3))
     translations = np.empty((2 * n + n_tips, n_poses, 3))
     base = (np.broadcast_to(np.eye(3), (n_poses, 3, 3)), np.zeros((n_poses, 3)))
+    turn = _Turns(chain.axes, q)
     for j in range(n):
         p = chain.parents[j]
         rot, pos = base if p < 0 else (rotations[2 * p + 1], translations[2 * p + 1])
-        rotations[2 * j], translations[2 * j] = _moved(rot, pos, chain.placements[j])
-        rotations[2 * j + 1], translations[2 * j + 1] = _turned(
-            rotations[2 * j], translations[2 * j], chain.axes[j], q[:, j]
-        )
+        _moved(rot, pos, chain.placements[j], rotations[2 * j], translations[2 * j])
+        turn.apply(j, rotations[2 * j], translations[2 * j], rotations[2 * j + 1], translations[2 * j + 1])
     for t, j in enumerate(chain.tip_joints):
         rot, pos = rotations[2 * j + 1], translations[2 * j + 1]
-        rotations[2 * n + t], translations[2 * n + t] = _moved(rot, pos, chain.placements[n + t])
+        _moved(rot, pos, chain.placements[n + t], rotations[2 * n + t], translations[2 * n + t])
     tips = np.zeros(n_poses, dtype=int) if row_tips is None else np.asarray(row_tips, dtype=int)
     return Frames(rotations, translations, tips, tree_reach(chain, tips), 2 * n)
 
