@@ -7,7 +7,7 @@
   cross-validated RMS is close to the nonlinear cross-validation's;
 - one BLAS thread by default, ``PINCAL_THREADS`` and ``--threads`` to change it;
 - the folds of a cross-validation run in two processes, and the answer is bit-for-bit the
-  serial one;
+  serial one; a worker's answer holds the parent's robot, not a copy;
 - Levenberg-Marquardt finds SciPy's least-squares minimum, and follows a curved valley to it;
 - ``import pincal`` and ``pincal --help`` load neither NumPy nor Pinocchio; ``calibrate`` and
   ``diagnose`` load neither ``scipy.optimize`` nor ``scipy.special`` (0.3 s of start-up), their
@@ -227,6 +227,26 @@ def test_parallel_map_raises_the_first_error_as_the_loop_would() -> None:
     with pytest.raises(pincal.IdentifiabilityError, match="fold 2") as caught:
         parallel_map(task, 5, workers=2)
     assert caught.value.poses_needed == 12
+
+
+class _Held:
+    """An object a worker's answer may hold."""
+
+
+def test_a_worker_sends_a_shared_object_back_by_reference(get_robot) -> None:
+    from pincal.threads import share
+
+    robot, shared = get_robot("ur5"), _Held()
+    share(shared)
+
+    def task(k: int) -> tuple[object, object, object]:
+        made_here = _Held()
+        share(made_here)  # made in the worker: the parent has no such object, it comes by value
+        return robot, shared, made_here
+
+    for back_robot, back_shared, made in parallel_map(task, 3, workers=2):
+        assert back_robot is robot and back_shared is shared  # the parent's own objects
+        assert isinstance(made, _Held) and made is not shared
 
 
 def test_workers_from_the_environment(monkeypatch: pytest.MonkeyPatch) -> None:

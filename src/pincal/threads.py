@@ -24,11 +24,14 @@ the cores this process may use; 1: serial). A worker never starts workers of its
 from __future__ import annotations
 
 import functools
+import io
 import multiprocessing
 import os
+import pickle
 import signal
 import sys
 import threading
+import weakref
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any, TypeVar
@@ -48,6 +51,8 @@ T = TypeVar("T")
 _controller: list[Any] = []  # threadpoolctl's controller, made at the first limited call
 _task: list[Callable[[int], Any]] = []  # the work of the pool being forked (inherited, not pickled)
 _in_worker: list[bool] = []  # set in a worker process: its own work runs serially
+_shared: weakref.WeakValueDictionary[int, Any] = weakref.WeakValueDictionary()  # share()'s, by id
+_at_fork: list[frozenset[int]] = []  # in a worker: the ids of the objects shared when it forked
 
 
 def thread_count(value: int | str | None = None) -> int:
@@ -142,6 +147,17 @@ def _may_fork() -> bool:
     )
 
 
+def share(obj: Any) -> None:
+    """Let worker processes send ``obj`` back by reference, not by value.
+
+    A worker is forked, so an object the parent held when the pool started is the worker's too,
+    at the same address. An answer that holds such an object (a fold's calibration holds its
+    robot, whose Pinocchio model is 150 kB of pickle) is sent with its id in its place, and the
+    parent puts its own object back there. Only immutable objects may be shared (a robot).
+    """
+    _shared[id(obj)] = obj
+
+
 def parallel_map(
     task: Callable[[int], T],
     count: int,
@@ -164,6 +180,7 @@ def parallel_map(
     if n_workers <= 1:
         return _serial(task, count, done)
     _task.append(task)
+    held = dict(_shared)  # what the workers may send by reference, alive while they run
     try:
         context = multiprocessing.get_context("fork")
         with context.Pool(n_workers, initializer=_start_worker) as pool:
@@ -171,7 +188,7 @@ def parallel_map(
             for k, (ok, answer) in enumerate(pool.imap(_run, range(count), chunksize=1)):
                 if not ok:
                     raise answer
-                answers.append(answer)
+                answers.append(_Unpickler(io.BytesIO(answer), held).load())
                 if done is not None:
                     done(k)
             return answers
@@ -194,12 +211,35 @@ def _start_worker() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     _in_worker.append(True)
+    _at_fork.append(frozenset(_shared.keys()))
 
 
 def _run(index: int) -> tuple[bool, Any]:
     """One index's answer, or the exception it raised (``(False, exc)``)."""
     try:
         with blas_threads(1):
-            return True, _task[-1](index)
+            answer = _task[-1](index)
+        out = io.BytesIO()
+        _Pickler(out, pickle.HIGHEST_PROTOCOL).dump(answer)
+        return True, out.getvalue()
     except Exception as exc:  # noqa: BLE001 (raised again in the parent, at its index)
         return False, exc
+
+
+class _Pickler(pickle.Pickler):
+    """A worker's pickler: a shared object the parent holds too (:func:`share`) goes by its id."""
+
+    def persistent_id(self, obj: Any) -> int | None:
+        token = id(obj)
+        return token if token in _at_fork[-1] and _shared.get(token) is obj else None
+
+
+class _Unpickler(pickle.Unpickler):
+    """The parent's unpickler: an id a worker sent is the parent's shared object ``held[id]``."""
+
+    def __init__(self, file: io.BytesIO, held: dict[int, Any]) -> None:
+        super().__init__(file)
+        self.held = held
+
+    def persistent_load(self, pid: Any) -> Any:
+        return self.held[pid]

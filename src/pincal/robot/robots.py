@@ -33,6 +33,7 @@ from pincal.robot.joint_kinds import (
 )
 from pincal.robot.marker_tips import is_marker_spec, marker_spec, parse_marker_tips
 from pincal.robot.urdf_parse import parse_urdf
+from pincal.threads import share
 
 if TYPE_CHECKING:
     from pincal.robot.ur_frames import URKinematics
@@ -98,6 +99,9 @@ class Robot:
     lent_text: str = field(default="", repr=False)
     marker_frames: dict[str, str] = field(default_factory=dict)
     tips: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        share(self)  # a worker's answer (a fold's calibration) sends it back by reference
 
     @property
     def is_tree(self) -> bool:
