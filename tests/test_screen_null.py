@@ -16,7 +16,8 @@ import numpy as np
 import pytest
 
 import pincal
-from pincal.auto.screen_null import ALPHA, _noise, draws_for, held_out_rms, least_squares_steps, screen_null
+from pincal.auto.bordered import least_squares_steps
+from pincal.auto.screen_null import ALPHA, _noise, draws_for, held_out_rms, screen_null
 from pincal.auto.screening import Linearised
 from pincal.kinematics.effects import EFFECTS, Extension
 

@@ -19,6 +19,14 @@ the serial loop). Each worker runs with one
 BLAS thread and does exactly what the serial loop does, so the answers are bit-for-bit the same
 (``tests/test_fast_paths.py``). ``PINCAL_WORKERS``: the number of worker processes (default:
 the cores this process may use; 1: serial). A worker never starts workers of its own.
+
+Inside one call of a library entry point (:func:`limited`) or one command, the workers are
+forked once, at the first :func:`parallel_map`, and kept until the call returns
+(:func:`kept_workers`): a fresh worker's first task costs two to three times the later ones (it
+copies every memory page it writes, about 1,500 of them, which is slow on a virtual machine), and
+a command runs six batches or more. A task is then sent to the kept workers pickled, the robot and
+the data that were there when they forked by reference (:func:`share`); a task that cannot be
+pickled (a closure) or is large (:data:`SENT_MAX`) gets workers forked for it, as before.
 """
 
 from __future__ import annotations
@@ -32,7 +40,7 @@ import signal
 import sys
 import threading
 import weakref
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from typing import Any, TypeVar
 
@@ -53,6 +61,10 @@ _task: list[Callable[[int], Any]] = []  # the work of the pool being forked (inh
 _in_worker: list[bool] = []  # set in a worker process: its own work runs serially
 _shared: weakref.WeakValueDictionary[int, Any] = weakref.WeakValueDictionary()  # share()'s, by id
 _at_fork: list[frozenset[int]] = []  # in a worker: the ids of the objects shared when it forked
+_scopes: list[list[_Kept]] = []  # kept_workers()'s open scope: its pool, once made
+#: A task pickled to more than this many bytes is not sent to kept workers: workers are forked
+#: for it and inherit it (large data made after the pool forked).
+SENT_MAX = 4_000_000
 
 
 def thread_count(value: int | str | None = None) -> int:
@@ -104,11 +116,12 @@ def load_blas_with_default() -> None:
 
 
 def limited(func: F) -> F:
-    """Decorate a library entry point to run with :func:`blas_threads`' default."""
+    """Decorate a library entry point to run with :func:`blas_threads`' default, its worker
+    processes kept for the whole call (:func:`kept_workers`)."""
 
     @functools.wraps(func)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
-        with blas_threads():
+        with blas_threads(), kept_workers():
             return func(*args, **kwargs)
 
     return wrapper  # type: ignore[return-value]
@@ -166,8 +179,9 @@ def parallel_map(
 ) -> list[T]:
     """``[task(0), ..., task(count - 1)]``, computed by forked worker processes.
 
-    The task is inherited by the workers (any callable, a closure too); only the indices go to
-    them and only the answers (pickled, so bit-for-bit) come back. An exception a task raises
+    The task is inherited by workers forked for it (any callable, a closure too), or sent pickled
+    to the workers kept for the call (:func:`kept_workers`); the answers come back pickled, so
+    bit-for-bit. An exception a task raises
     is raised here, the one of the lowest index, as the serial loop would raise it.
 
     Args:
@@ -179,6 +193,10 @@ def parallel_map(
     n_workers = min(worker_count(workers), count)
     if n_workers <= 1:
         return _serial(task, count, done)
+    kept = _kept(worker_count(workers))
+    sent = None if kept is None else kept.payload(task)
+    if kept is not None and sent is not None:
+        return kept.map(sent, count, done)
     _task.append(task)
     held = dict(_shared)  # what the workers may send by reference, alive while they run
     try:
@@ -194,6 +212,17 @@ def parallel_map(
             return answers
     finally:
         _task.pop()
+
+
+def run_jobs(jobs: Sequence[Callable[[], Any]]) -> list[Any]:
+    """Every job's answer, in order: independent work run together by the worker processes
+    (:func:`parallel_map`; bit-for-bit the serial loop's answers)."""
+    return parallel_map(functools.partial(_run_job, jobs), len(jobs)) if jobs else []
+
+
+def _run_job(jobs: Sequence[Callable[[], Any]], k: int) -> Any:
+    """Job ``k``'s answer (a task that pickles: the workers kept for the call are sent it)."""
+    return jobs[k]()
 
 
 def _serial(task: Callable[[int], T], count: int, done: Callable[[int], None] | None) -> list[T]:
@@ -216,26 +245,40 @@ def _start_worker() -> None:
 
 def _run(index: int) -> tuple[bool, Any]:
     """One index's answer, or the exception it raised (``(False, exc)``)."""
+    return _answer(_task[-1], index)
+
+
+def _answer(task: Callable[[int], Any], index: int) -> tuple[bool, Any]:
+    """``task(index)`` pickled for the parent (:class:`_Pickler`), or the exception it raised."""
     try:
         with blas_threads(1):
-            answer = _task[-1](index)
+            answer = task(index)
         out = io.BytesIO()
-        _Pickler(out, pickle.HIGHEST_PROTOCOL).dump(answer)
+        _Pickler(out, pickle.HIGHEST_PROTOCOL, _shared_at_fork()).dump(answer)
         return True, out.getvalue()
     except Exception as exc:  # noqa: BLE001 (raised again in the parent, at its index)
         return False, exc
 
 
+def _shared_at_fork() -> dict[int, Any]:
+    """In a worker: the shared objects the parent held when it forked, by id."""
+    return {token: obj for token in _at_fork[-1] if (obj := _shared.get(token)) is not None}
+
+
 class _Pickler(pickle.Pickler):
-    """A worker's pickler: a shared object the parent holds too (:func:`share`) goes by its id."""
+    """A pickler across a fork: a shared object both sides hold (``held``, by id) goes by its id."""
+
+    def __init__(self, file: io.BytesIO, protocol: int, held: dict[int, Any]) -> None:
+        super().__init__(file, protocol)
+        self.held = held
 
     def persistent_id(self, obj: Any) -> int | None:
         token = id(obj)
-        return token if token in _at_fork[-1] and _shared.get(token) is obj else None
+        return token if token in self.held and self.held[token] is obj else None
 
 
 class _Unpickler(pickle.Unpickler):
-    """The parent's unpickler: an id a worker sent is the parent's shared object ``held[id]``."""
+    """An unpickler across a fork: an id the other side sent is this side's object ``held[id]``."""
 
     def __init__(self, file: io.BytesIO, held: dict[int, Any]) -> None:
         super().__init__(file)
@@ -243,3 +286,75 @@ class _Unpickler(pickle.Unpickler):
 
     def persistent_load(self, pid: Any) -> Any:
         return self.held[pid]
+
+
+@contextmanager
+def kept_workers() -> Iterator[None]:
+    """Keep the worker processes that :func:`parallel_map` forks first inside the block for
+    every later one, and end them with it (an inner block: the outer one's)."""
+    if _scopes or _in_worker:
+        yield
+        return
+    scope: list[_Kept] = []
+    _scopes.append(scope)
+    try:
+        yield
+    finally:
+        _scopes.pop()
+        for kept in scope:
+            kept.close()
+
+
+def _kept(n_workers: int) -> _Kept | None:
+    """The open scope's pool of ``n_workers`` (forked now if it has none yet), else None."""
+    if not _scopes or not _may_fork():
+        return None
+    scope = _scopes[-1]
+    if not scope:
+        scope.append(_Kept(n_workers))
+    return scope[0] if scope[0].workers == n_workers else None
+
+
+class _Kept:
+    """Worker processes kept for a scope, sent each task pickled."""
+
+    def __init__(self, workers: int) -> None:
+        self.workers = workers
+        self.held = dict(_shared)  # alive while the workers are: their ids stay these objects'
+        self.pool = multiprocessing.get_context("fork").Pool(workers, initializer=_start_worker)
+
+    def payload(self, task: Callable[[int], Any]) -> bytes | None:
+        """``task`` pickled for the workers, or None: it cannot be pickled, or is too large."""
+        out = io.BytesIO()
+        try:
+            _Pickler(out, pickle.HIGHEST_PROTOCOL, self.held).dump(task)
+        except (pickle.PicklingError, TypeError, AttributeError):
+            return None
+        return out.getvalue() if out.tell() <= SENT_MAX else None
+
+    def map(self, sent: bytes, count: int, done: Callable[[int], None] | None) -> list[Any]:
+        """:func:`parallel_map` of the pickled task ``sent`` on the kept workers."""
+        answers = []
+        jobs = ((sent, k) for k in range(count))
+        for k, (ok, answer) in enumerate(self.pool.imap(_run_sent, jobs, chunksize=1)):
+            if not ok:
+                raise answer
+            answers.append(_Unpickler(io.BytesIO(answer), self.held).load())
+            if done is not None:
+                done(k)
+        return answers
+
+    def close(self) -> None:
+        """End the workers."""
+        self.pool.terminate()
+        self.pool.join()
+
+
+def _run_sent(job: tuple[bytes, int]) -> tuple[bool, Any]:
+    """A kept worker's answer to one index of a pickled task (:func:`_run`'s)."""
+    sent, index = job
+    try:
+        task = _Unpickler(io.BytesIO(sent), _shared_at_fork()).load()
+    except Exception as exc:  # noqa: BLE001 (raised again in the parent)
+        return False, exc
+    return _answer(task, index)

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from pincal.auto.finalists import Finalists, batch, worth_judging
+from pincal.auto.finalists import Finalists, worth_judging
 from pincal.auto.screen_null import ALPHA, draws_for, p_values, screen_null
 from pincal.auto.screening import Linearised
 from pincal.data.dataset import Dataset
@@ -35,7 +35,7 @@ from pincal.kinematics.effects import AnyEffect, Extension, candidates
 from pincal.kinematics.gravity import Payload, massless
 from pincal.kinematics.stiffness import Stiffness, compliance_stiffness, implausible
 from pincal.robot.robots import Robot
-from pincal.threads import limited
+from pincal.threads import limited, run_jobs
 
 #: The winner must beat the baseline's cross-validated RMS by at least this factor.
 MIN_GAIN = 1.1
@@ -298,16 +298,14 @@ def diagnose_with(
         options["start"] = WarmStart.of(base)
     lin = Linearised(base, data, folds, seed, pool)  # every candidate's columns in one pass
     total = len(pool) + min(FINALISTS, len(pool))
-    screens = []
-    for k, ext in enumerate(pool):
-        screen = lin.screen(ext)
-        if screen.identifiable:  # an effect the data cannot tell from the geometry is no candidate
-            screens.append((ext, screen))
-        if progress is not None:
-            progress(k + 1, total, ext.label)
+    baseline_screen, each = lin.screen_all(pool)
+    # an effect the data cannot tell from the geometry is no candidate
+    screens = [(ext, screen) for ext, screen in zip(pool, each) if screen.identifiable]
+    if progress is not None:
+        progress(len(pool), total, "linearised screen")
     screens.sort(key=lambda item: item[1].cv_rms_mm)
     null = screen_null(lin, [ext for ext, _ in screens], draws_for(step), seed)
-    lin_rms = lin.screen().cv_rms_mm  # the baseline's, linearised
+    lin_rms = baseline_screen.cv_rms_mm  # the baseline's, linearised
     p_of = p_values(lin_rms, null)
     options["partial"] = True
     top = screens[: min(FINALISTS, len(screens))]
@@ -316,11 +314,12 @@ def diagnose_with(
     likely = worth_judging(top, lin_rms, p_of, level) if quick else top  # started early
     can_name = not quick or any(p_of(s) < level for _, s in top) or not lin.folds_fit()  # else no refit
     base_jobs = [] if base_runs is None or not can_name else base_runs.jobs()
-    first = batch([*base_jobs, *fits.jobs(likely)])  # the baseline's folds beside the fits
+    full_jobs = fits.jobs(likely)  # on all poses with one more unknown: the longest, so first
+    first = run_jobs([*full_jobs, *base_jobs])  # the baseline's folds beside the fits
     if base_runs is not None:
-        base_rms = base_runs.pooled(first[: len(base_jobs)]).after.rms_mm if base_jobs else lin_rms
+        base_rms = base_runs.pooled(first[len(full_jobs) :]).after.rms_mm if base_jobs else lin_rms
     finals = worth_judging(top, base_rms, p_of, level) if quick else top
-    fulls = fits.on_all_poses(finals, dict(zip((e.label for e, _ in likely), first[len(base_jobs) :])))
+    fulls = fits.on_all_poses(finals, dict(zip((e.label for e, _ in likely), first[: len(full_jobs)])))
     for k, (ext, _) in enumerate(finals):
         if progress is not None:
             progress(len(pool) + k + 1, total, f"{ext.label} (nonlinear)")

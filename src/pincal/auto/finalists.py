@@ -1,6 +1,6 @@
 """The diagnosis' nonlinear stage: the finalists' fits on all poses and their cross-validations,
-run as batches of independent jobs (:func:`batch`) that the worker processes share with the
-baseline's folds; the answers are the serial loop's, bit for bit."""
+run as batches of independent jobs (:func:`~pincal.threads.run_jobs`) that the worker processes
+share with the baseline's folds; the answers are the serial loop's, bit for bit."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ from pincal.identify.calibration import Calibration
 from pincal.identify.kfold import CrossValidation, Fit, FoldRuns
 from pincal.identify.warm import WarmStart
 from pincal.kinematics.effects import AnyEffect, Extension, combined
-from pincal.threads import parallel_map
+from pincal.threads import run_jobs
 
 #: ``quick`` diagnoses (``calibrate --extend auto``) judge by the nonlinear cross-validation only
 #: the finalists whose linearised cross-validated gain reaches this (half of the diagnosis'
@@ -35,15 +35,10 @@ def worth_judging(
     return [(e, s) for e, s in top if base_rms / s.cv_rms_mm >= QUICK_GAIN and p_of(s) < level]
 
 
-def batch(jobs: list[Callable[[], Any]]) -> list[Any]:
-    """Every job's answer, in order: independent work run together by the worker processes
-    (:func:`~pincal.threads.parallel_map`; bit-for-bit the serial loop's answers)."""
-    return parallel_map(lambda k: jobs[k](), len(jobs)) if jobs else []
-
-
 @dataclass(frozen=True)
 class Finalists:
-    """The nonlinear fits of the finalists and their cross-validations, as jobs for :func:`batch`.
+    """The nonlinear fits of the finalists and their cross-validations, as jobs for
+    :func:`~pincal.threads.run_jobs`.
 
     Attributes:
         fit: the calibration.
@@ -66,7 +61,7 @@ class Finalists:
     ) -> list[Calibration]:
         """The fit on all poses of each of ``chosen``: from ``known`` (by label), else fitted now."""
         missing = [(e, s) for e, s in chosen if e.label not in known]
-        fitted = dict(zip((e.label for e, _ in missing), batch(self.jobs(missing))))
+        fitted = dict(zip((e.label for e, _ in missing), run_jobs(self.jobs(missing))))
         return [known[e.label] if e.label in known else fitted[e.label] for e, _ in chosen]
 
     def _full(self, ext: Extension) -> Calibration:
@@ -100,7 +95,7 @@ class Finalists:
             )
             for ext, _, full in kept
         ]
-        answers = batch([job for r in runs for job in r.jobs()])
+        answers = run_jobs([job for r in runs for job in r.jobs()])
         out = []
         for (ext, screen, full), r in zip(kept, runs):
             out.append((ext, screen, full, r.pooled(answers[: len(r.parts)])))

@@ -8,6 +8,7 @@ the fitted poses alone (``params="auto"``, ``extension="auto"``, see :mod:`pinca
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Sequence
 from dataclasses import replace
 from typing import Any
@@ -30,7 +31,7 @@ from pincal.kinematics.effects import AnyEffect, Effects, Extension
 from pincal.kinematics.models import Model
 from pincal.plausibility.judge import judge_calibration
 from pincal.robot.robots import Robot
-from pincal.threads import limited
+from pincal.threads import limited, run_jobs
 
 
 def fit(
@@ -137,7 +138,13 @@ def _calibrated(
     """The calibration ``asked`` of ``what`` (model and measure) on ``data``, unjudged."""
     wanted, ext = asked.wanted(), asked.effect(robot)
     setup, choice, wanted, chosen, opts = _chosen(robot, data, what, wanted, ext, asked, progress)
-    found = fit(setup, wanted, **chosen, **opts.fitting(), start=opts.start)
+    found_job = functools.partial(fit, setup, wanted, **chosen, **opts.fitting(), start=opts.start)
+    alone_job = _urdf_alone(setup, choice, opts)
+    alone: Protected | None = None
+    if alone_job is None:
+        found = found_job()
+    else:  # independent fits: run together
+        found, alone = run_jobs([found_job, alone_job])
     bad, scores = screen_outliers(*found.screening, found.free, opts.outliers or 0.0, opts.f_scale)
     if bad.size and choice.diagnosis is not None and choice.diagnosis.candidates:
         bad = _outliers_for_both(setup, choice, bad, wanted, opts)
@@ -147,7 +154,19 @@ def _calibrated(
     if asked.nested is not False:
         judge = _judge(robot, data, what, asked, progress)
         choice = choice.with_nested(judge, asked.nested is True, len(data))
-    return _delivered(found, setup, choice, wanted, test, opts)
+    return _delivered(found, setup, choice, wanted, test, opts, alone)
+
+
+def _urdf_alone(setup: Setup, choice: ModelChoice, opts: CalibrateOptions) -> Callable[[], Protected] | None:
+    """The fit of the geometry alone that a complete delivery writes as the URDF (run beside the
+    full model's fit), or None when the delivery has no such fit."""
+    if setup.problem.extension is None or opts.deliver != "complete":
+        return None
+    problem = setup.problem
+    geometry = set_up(
+        problem.model.robot, setup.data, problem.model, problem.measurement.kind, **opts.setup()
+    )
+    return functools.partial(fit, geometry, _geometric_choice(geometry, choice).params, **opts.fitting())
 
 
 def _chosen(
@@ -188,9 +207,11 @@ def _delivered(
     wanted: Any,
     test: Dataset | None,
     opts: CalibrateOptions,
+    alone: Protected | None = None,
 ) -> Calibration:
     """The fit ``found`` of ``setup`` (on the parameters ``wanted``) as ``opts.deliver`` asks (see
-    :class:`~pincal.auto.settings.CalibrateOptions`)."""
+    :class:`~pincal.auto.settings.CalibrateOptions`); ``alone``: the complete delivery's fit of
+    the geometry alone (:func:`_urdf_alone`), when already made."""
     if setup.problem.extension is None or opts.deliver == "none":
         return replace(found.assessed(test), choice=choice)
     if opts.deliver == "joint":
@@ -201,9 +222,9 @@ def _delivered(
     geometric = _geometric_choice(geometry, choice)
     kept = geometric.params
     if opts.deliver == "complete":  # the URDF: the geometry alone; the sidecar: the full model
-        alone = replace(fit(geometry, kept, **opts.fitting()).assessed(test), choice=geometric)
+        alone = fit(geometry, kept, **opts.fitting()) if alone is None else alone
         full = settled(replace(found.assessed(test), choice=choice), setup.data, test)
-        return replace(full, urdf_fit=alone)
+        return replace(full, urdf_fit=replace(alone.assessed(test), choice=geometric))
     joint = found if kept == wanted else fit(setup, kept, **opts.fitting())  # the same parameters: reused
     return _balanced(setup, geometry, kept, joint, geometric, test, opts)
 

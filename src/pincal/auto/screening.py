@@ -28,6 +28,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from pincal.auto.bordered import least_squares_steps
 from pincal.data.dataset import Dataset
 from pincal.identify import chunked
 from pincal.identify.calibration import Calibration
@@ -225,3 +226,53 @@ class Linearised:
         identifiable = bool(np.sqrt(max(float(np.linalg.eigvalsh(schur).min()), 0.0)) > RCOND)
         params = step[n_base:-1] / norms[n_base:]
         return Screen(float(np.sqrt(squares / max(entries, 1))) * 1e3, rss, params, identifiable)
+
+    def screen_all(self, pool: Sequence[AnyEffect]) -> tuple[Screen, list[Screen]]:
+        """:meth:`screen` of the baseline and of each effect of ``pool``: every fold's fits by
+        bordered solves on its baseline's factor (:func:`~pincal.auto.bordered.least_squares_steps`),
+        the same figures to rounding as one solve per candidate and fold."""
+        if any(ext.label not in self.columns for ext in pool):  # columns summed in another pass
+            return self.screen(), [self.screen(ext) for ext in pool]
+        n_base = len(self.free)
+        base = np.arange(n_base)
+        takes = [base] + [np.concatenate([base, self.columns[ext.label]]) for ext in pool]
+        total = self.sums.gram()
+        norms = np.sqrt(np.diag(total)[:-1])
+        norms = np.where(norms > 0, norms, 1.0)
+        scale = np.outer(np.append(1.0 / norms, 1.0), np.append(1.0 / norms, 1.0))  # unit columns
+        squares, entries = np.zeros(len(takes)), 0
+        for k in range(self.n_folds):
+            held = self.sums.gram(k, held=True) * scale
+            for i, (rows, step) in enumerate(_steps(self.sums.gram(k) * scale, takes)):
+                squares[i] += max(float(step @ held[np.ix_(rows, rows)] @ step), 0.0)
+            entries += self.sums.n_held(k) // min(self.kind.width, 3)
+        total = total * scale
+        absorbed = _unabsorbed(total, n_base)
+        out = []
+        for i, (rows, step) in enumerate(_steps(total, takes)):
+            rss = max(float(step @ total[np.ix_(rows, rows)] @ step), 0.0)
+            extra = takes[i][n_base:] - n_base
+            identifiable = _identifiable(absorbed[np.ix_(extra, extra)]) if extra.size else True
+            cv = float(np.sqrt(squares[i] / max(entries, 1))) * 1e3
+            out.append(Screen(cv, rss, step[n_base:-1] / norms[takes[i][n_base:]], identifiable))
+        return out[0], out[1:]
+
+
+def _steps(gram: np.ndarray, takes: list[np.ndarray]) -> list[tuple[np.ndarray, np.ndarray]]:
+    """For each take (columns of ``[J E]``): its rows and columns of ``gram`` (of ``[J E r]``), with
+    ``r``'s, and ``[δ; 1]`` for its least-squares step of ``r + [J E] δ``."""
+    steps = least_squares_steps(gram[:-1, :-1], gram[:-1, -1:], takes)
+    last = len(gram) - 1
+    return [(np.append(take, last), np.append(-step[:, 0], 1.0)) for take, step in zip(takes, steps)]
+
+
+def _unabsorbed(total: np.ndarray, n_base: int) -> np.ndarray:
+    """What of every candidate column the geometry's columns cannot absorb, for all at once:
+    ``EᵀE - EᵀJ (JᵀJ)⁺ JᵀE`` (unit columns)."""
+    jj, je, ee = total[:n_base, :n_base], total[:n_base, n_base:-1], total[n_base:-1, n_base:-1]
+    return ee - je.T @ np.linalg.lstsq(jj, je, rcond=1e-12)[0]
+
+
+def _identifiable(schur: np.ndarray) -> bool:
+    """Whether an effect's columns stay apart from the geometry's (their Schur complement)."""
+    return bool(np.sqrt(max(float(np.linalg.eigvalsh(schur).min()), 0.0)) > RCOND)

@@ -29,6 +29,7 @@ depend on the noise's size; only the pull's weight, relative to the noise, does.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -106,11 +107,8 @@ def null_threshold(
     res = plan.project(setup.linearised(nominal)[0])
     sigma = float(np.sqrt(res @ res / free))
 
-    def draw(k: int) -> float:  # each draw its own seed: the same answer on one core or two
-        return _null_z(setup, plan, sigma, np.random.default_rng([seed, k]))
-
-    if chosen is None:
-        zs = np.sort(parallel_map(draw, draws))
+    if chosen is None:  # each draw its own seed: the same answer on one core or two
+        zs = np.sort(parallel_map(functools.partial(_seeded_z, setup, plan, sigma, seed), draws))
     else:  # the same columns in every draw: their leave-one-out algebra once, for all draws
         eps = [
             noise_rows(setup, len(plan.jac), sigma, np.random.default_rng([seed, k])) for k in range(draws)
@@ -128,6 +126,11 @@ def noise_rows(setup: Setup, n_rows: int, sigma: float, rng: np.random.Generator
         return rng.normal(0.0, sigma, n_rows)
     eps = rng.normal(0.0, sigma / np.sqrt(2.0), setup.data.points.shape)
     return problem.measurement.measure.noise_rows(problem, n_rows, eps[:, :, None])[:, 0]
+
+
+def _seeded_z(setup: Setup, plan: Design, sigma: float, seed: int, k: int) -> float:
+    """The guard's ``z`` on draw ``k`` of pure noise (seeded by ``seed`` and ``k``)."""
+    return _null_z(setup, plan, sigma, np.random.default_rng([seed, k]))
 
 
 def _null_z(setup: Setup, plan: Design, sigma: float, rng: np.random.Generator) -> float:
