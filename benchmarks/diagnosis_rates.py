@@ -39,7 +39,7 @@ from pincal.data.dataset import Dataset
 from pincal.identify.calibration import Calibration
 from pincal.kinematics.effects import Extension
 from pincal.simulation.truth import hide_effect, random_truth
-from pincal.threads import parallel_map
+from pincal.workers import parallel_map
 
 HIDDEN = "gear_harmonic:elbow_joint"
 F_ALPHA = 0.01  # the replaced rule's family-wise level

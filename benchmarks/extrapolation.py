@@ -48,7 +48,7 @@ import numpy as np
 from markdown_page import command_line, table, write_page
 
 import pincal
-from pincal.threads import parallel_map
+from pincal.workers import parallel_map
 
 N_FIT = 30
 N_NEW = 200

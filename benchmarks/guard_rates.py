@@ -48,7 +48,7 @@ import pincal
 from pincal.data.dataset import Dataset
 from pincal.identify.guard import Z_MIN
 from pincal.simulation.truth import random_truth
-from pincal.threads import parallel_map
+from pincal.workers import parallel_map
 
 N_NEW = 200  # new poses, over the whole range
 WORSE = 1.05  # an exported fit more than 5 % worse than nominal on the new poses

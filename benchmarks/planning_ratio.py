@@ -34,7 +34,7 @@ import numpy as np
 import pincal
 from pincal.planning.candidates import candidate_poses
 from pincal.planning.plan import plan_poses
-from pincal.threads import limited
+from pincal.workers import limited
 
 NOISE = 3e-5  # 1σ per coordinate [m]
 CANDIDATES = 2000

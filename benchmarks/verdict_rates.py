@@ -30,7 +30,7 @@ from markdown_page import publish, table
 import pincal
 from pincal.auto.residual import residual_verdict
 from pincal.data.dataset import Dataset
-from pincal.threads import parallel_map
+from pincal.workers import parallel_map
 
 #: The rows measured again, by ``--repeats``.
 EXTRA = {6: (0, 0, 1, 1, 2, 2), 2: (0, 1)}

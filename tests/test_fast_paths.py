@@ -30,10 +30,11 @@ from pincal.auto.choice import ModelChoice
 from pincal.auto.crossval import cross_validate
 from pincal.auto.screening import Linearised
 from pincal.identify.solver import set_up
-from pincal.kinematics.effects import Extension
+from pincal.kinematics.effects import Extension, candidates
 from pincal.kinematics.so3 import jlog3, log3
 from pincal.simulation.truth import hide_effect
-from pincal.threads import blas_threads, parallel_map, thread_count, worker_count
+from pincal.threads import blas_threads, thread_count
+from pincal.workers import kept_workers, parallel_map, worker_count
 
 
 def _rotations(seed: int) -> np.ndarray:
@@ -88,6 +89,24 @@ def test_linearised_screen_matches_the_nonlinear_cross_validation(get_robot) -> 
     assert plain.cv_rms_mm == pytest.approx(no_effect, rel=0.05)
     found, effect = screens[hidden.label].params, truth.effect
     assert found is not None and effect is not None and found[0] == pytest.approx(effect[0], rel=0.2)
+
+
+@pytest.mark.parametrize("measure", ["position", "pose"])
+def test_every_candidate_screened_at_once_is_each_screened_alone(get_robot, measure: str) -> None:
+    robot = get_robot("ur5")
+    truth, fit, _ = pincal.simulate(robot, n_fit=40, n_test=0, seed=3, rot_noise=5e-4)
+    hidden = Extension.parse(robot, "joint_compliance:shoulder_lift_joint")
+    fit = hide_effect(truth, hidden, fit.q, 4e-4, seed=3).measure(fit.q, 3e-5, 5e-4, seed=5)
+    base = pincal.calibrate(robot, fit, measure=measure, deliver="none")
+    pool = candidates(robot, None)
+    lin = Linearised(base, fit, folds=5, seed=0, pool=pool)
+    plain, each = lin.screen_all(pool)
+    for alone, together in zip([lin.screen(), *(lin.screen(ext) for ext in pool)], [plain, *each]):
+        assert together.cv_rms_mm == pytest.approx(alone.cv_rms_mm, rel=1e-9)
+        assert together.rss == pytest.approx(alone.rss, rel=1e-9)
+        assert np.allclose(together.params, alone.params, rtol=1e-7, atol=1e-15)
+        assert together.identifiable == alone.identifiable
+    assert min(each, key=lambda screen: screen.cv_rms_mm) is each[[e.label for e in pool].index(hidden.label)]
 
 
 def _blas_threads() -> int:
@@ -234,7 +253,7 @@ class _Held:
 
 
 def test_a_worker_sends_a_shared_object_back_by_reference(get_robot) -> None:
-    from pincal.threads import share
+    from pincal.workers import share
 
     robot, shared = get_robot("ur5"), _Held()
     share(shared)
@@ -247,6 +266,40 @@ def test_a_worker_sends_a_shared_object_back_by_reference(get_robot) -> None:
     for back_robot, back_shared, made in parallel_map(task, 3, workers=2):
         assert back_robot is robot and back_shared is shared  # the parent's own objects
         assert isinstance(made, _Held) and made is not shared
+
+
+def _square_and_pid(k: int) -> tuple[int, int]:
+    import os
+
+    return k * k, os.getpid()
+
+
+def _pids_of_two_calls() -> tuple[set[int], set[int]]:
+    first = parallel_map(_square_and_pid, 6, workers=2)
+    second = parallel_map(_square_and_pid, 6, workers=2)
+    assert [a for a, _ in first] == [a for a, _ in second] == [k * k for k in range(6)]
+    return {pid for _, pid in first}, {pid for _, pid in second}
+
+
+def test_workers_are_kept_for_a_call_and_end_with_it(monkeypatch: pytest.MonkeyPatch) -> None:
+    import os
+
+    import pincal.workers
+
+    monkeypatch.setenv("PINCAL_WORKERS", "2")
+    with kept_workers():
+        first, second = _pids_of_two_calls()
+        kept = pincal.workers._scopes[-1][0].pool
+        assert first | second <= {worker.pid for worker in kept._pool}  # both calls: the kept two
+        assert [a for a, _ in parallel_map(lambda k: (k + 1, 0), 3)] == [1, 2, 3]  # a closure: forked
+    assert os.getpid() not in first
+    assert all(not worker.is_alive() for worker in kept._pool)  # ended with the block
+    first, second = _pids_of_two_calls()
+    assert not first & second  # outside a call: forked for each
+    monkeypatch.setattr(pincal.workers, "KEEP_MAX_MB", 0.0)
+    with kept_workers():  # a large process keeps none: each would hold copies of its pages
+        first, second = _pids_of_two_calls()
+    assert not first & second
 
 
 def test_workers_from_the_environment(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -24,7 +24,7 @@ from finite_differences import tip_jacobian_fd
 import pincal
 import pincal.identify.measurement
 import pincal.kinematics.mdh
-from pincal.kinematics.chain import skew
+from pincal.kinematics.turns import skew
 
 ROBOTS = ("ur5", "ur10", "panda", "z1", "mrres5", "zu3")
 JACOBIAN_ROBOTS = ("ur5", "panda")

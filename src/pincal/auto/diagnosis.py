@@ -35,7 +35,7 @@ from pincal.kinematics.effects import AnyEffect, Extension, candidates
 from pincal.kinematics.gravity import Payload, massless
 from pincal.kinematics.stiffness import Stiffness, compliance_stiffness, implausible
 from pincal.robot.robots import Robot
-from pincal.threads import limited, run_jobs
+from pincal.workers import limited, run_jobs
 
 #: The winner must beat the baseline's cross-validated RMS by at least this factor.
 MIN_GAIN = 1.1

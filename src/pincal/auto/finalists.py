@@ -1,5 +1,5 @@
 """The diagnosis' nonlinear stage: the finalists' fits on all poses and their cross-validations,
-run as batches of independent jobs (:func:`~pincal.threads.run_jobs`) that the worker processes
+run as batches of independent jobs (:func:`~pincal.workers.run_jobs`) that the worker processes
 share with the baseline's folds; the answers are the serial loop's, bit for bit."""
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from pincal.identify.calibration import Calibration
 from pincal.identify.kfold import CrossValidation, Fit, FoldRuns
 from pincal.identify.warm import WarmStart
 from pincal.kinematics.effects import AnyEffect, Extension, combined
-from pincal.threads import run_jobs
+from pincal.workers import run_jobs
 
 #: ``quick`` diagnoses (``calibrate --extend auto``) judge by the nonlinear cross-validation only
 #: the finalists whose linearised cross-validated gain reaches this (half of the diagnosis'
@@ -38,7 +38,7 @@ def worth_judging(
 @dataclass(frozen=True)
 class Finalists:
     """The nonlinear fits of the finalists and their cross-validations, as jobs for
-    :func:`~pincal.threads.run_jobs`.
+    :func:`~pincal.workers.run_jobs`.
 
     Attributes:
         fit: the calibration.

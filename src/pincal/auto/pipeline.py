@@ -31,7 +31,7 @@ from pincal.kinematics.effects import AnyEffect, Effects, Extension
 from pincal.kinematics.models import Model
 from pincal.plausibility.judge import judge_calibration
 from pincal.robot.robots import Robot
-from pincal.threads import limited, run_jobs
+from pincal.workers import limited, run_jobs
 
 
 def fit(

@@ -101,7 +101,8 @@ def _reserve_closed_channels() -> dict[int, bool]:
 def _run(argv: Sequence[str] | None, stdout_closed: bool = False) -> int:
     """Parse, run the command with its printed text held back, then print it and the warnings."""
     args = build_parser().parse_args(attach_vectors(sys.argv[1:] if argv is None else argv))
-    from pincal.threads import blas_threads, kept_workers
+    from pincal.threads import blas_threads
+    from pincal.workers import kept_workers
 
     command = importlib.import_module(f"{__name__}.{args.command}")  # one module per command
     printed = io.StringIO()  # said when the run ends well: a refused result prints nothing

@@ -32,7 +32,7 @@ from pincal.identify.identifiability import RCOND
 from pincal.identify.solver import SETUP_KEYS, Setup, register, set_up
 from pincal.kinematics.effects import AnyEffect
 from pincal.robot.robots import Robot
-from pincal.threads import limited
+from pincal.workers import limited
 
 #: Take the shortest prefix of the path within this fraction of its lowest cross-validated RMS...
 MIN_GAIN = 0.01

@@ -38,7 +38,7 @@ import numpy as np
 from pincal.identify.folds import held_out_squares
 from pincal.identify.forward_selection import KEEP_ALL, MIN_GAIN, Design, choose_step, design, walk
 from pincal.identify.solver import Setup
-from pincal.threads import parallel_map
+from pincal.workers import parallel_map
 
 #: Draws of pure noise through the selection and the guard: with the largest as the threshold,
 #: false exports on pure noise at most 1/21 = 4.8 % (each draw costs a selection's walk).

@@ -28,7 +28,7 @@ from pincal.identify.folds import pose_folds
 from pincal.identify.measurements import Problem
 from pincal.kinematics.models import Model
 from pincal.robot.robots import Robot
-from pincal.threads import limited, parallel_map
+from pincal.workers import limited, parallel_map
 
 #: A fit: :func:`pincal.calibrate`'s signature, ``fit(robot, data, model, measure, **options)``.
 Fit = Callable[..., Calibration]
@@ -120,7 +120,7 @@ def cross_validate_with(
 @dataclass(frozen=True, eq=False)
 class FoldRuns:
     """A K-fold cross-validation as its independent fold fits: run by :func:`cross_validate_with`,
-    or among other work in one :func:`~pincal.threads.parallel_map` (each :meth:`fold`, then
+    or among other work in one :func:`~pincal.workers.parallel_map` (each :meth:`fold`, then
     :meth:`pooled`), with the same answer.
 
     Attributes:

@@ -36,9 +36,10 @@ from pincal.identify import chunked
 from pincal.identify.fixed_points import point_index, point_means
 from pincal.identify.measurement import Measurement, check_markers, marker_points, unpack
 from pincal.identify.registration import quaternions
-from pincal.kinematics.chain import Frames, forward, stacked_dot, summed_columns, twist_columns
+from pincal.kinematics.chain import Frames, forward, summed_columns, twist_columns
 from pincal.kinematics.effects import AnyEffect
 from pincal.kinematics.models import Model
+from pincal.kinematics.turns import stacked_dot
 
 
 def marker_arms(rotations: np.ndarray, points: np.ndarray, marker: np.ndarray) -> np.ndarray:

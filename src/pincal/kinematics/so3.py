@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from pincal.kinematics.chain import skew
+from pincal.kinematics.turns import skew
 
 
 def log3(rot: np.ndarray) -> np.ndarray:

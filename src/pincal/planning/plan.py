@@ -42,7 +42,7 @@ from pincal.planning.design import CRITERIA, exchange, greedy, swap
 from pincal.planning.equations import check_equations
 from pincal.planning.information import Information, tool_hypotheses
 from pincal.robot.robots import Robot
-from pincal.threads import limited
+from pincal.workers import limited
 
 
 @dataclass(frozen=True)

@@ -33,7 +33,7 @@ from pincal.robot.joint_kinds import (
 )
 from pincal.robot.marker_tips import is_marker_spec, marker_spec, parse_marker_tips
 from pincal.robot.urdf_parse import parse_urdf
-from pincal.threads import share
+from pincal.workers import share
 
 if TYPE_CHECKING:
     from pincal.robot.ur_frames import URKinematics

@@ -18,9 +18,10 @@ import pinocchio as pin
 
 from pincal.data.dataset import Dataset
 from pincal.errors import DataError
-from pincal.kinematics.chain import forward, joint_jacobian, skew
+from pincal.kinematics.chain import forward, joint_jacobian
 from pincal.kinematics.effects import AnyEffect, Extension, combined
 from pincal.kinematics.models import Model, PlacementsModel
+from pincal.kinematics.turns import skew
 from pincal.robot.robots import Robot
 
 

@@ -20,7 +20,7 @@ import numpy as np
 
 from pincal.errors import DataError
 from pincal.options import ORIENTATIONS
-from pincal.threads import limited
+from pincal.workers import limited
 
 #: Shortest accepted orientation move [m].
 MIN_MOVE = 0.005
