@@ -18,6 +18,7 @@ from __future__ import annotations
 import json
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -25,6 +26,7 @@ import pytest
 import pincal
 from pincal.auto.choice import NESTED_MAX_POSES
 from pincal.auto.crossval import cross_validate
+from pincal.auto.screen_null import ALPHA
 from pincal.cli import main
 from pincal.kinematics.effects import Extension
 from pincal.kinematics.models import PlacementsModel
@@ -180,6 +182,34 @@ def test_extend_auto_names_a_hidden_compliance(get_robot: Callable[[str], pincal
     assert cal.choice.rounds[0].cause == "joint_compliance:shoulder_lift_joint"
     true_c = float(truth.effect[0])
     assert cal.effect_params[0] == pytest.approx(true_c, rel=0.1)
+
+
+def test_each_round_names_its_cause_at_its_own_level(
+    get_robot: Callable[[str], pincal.Robot], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import pincal.auto.choice as choice_module
+
+    robot = get_robot("ur5")
+    truth, fit, _ = pincal.simulate(robot, n_fit=30, n_test=1, seed=1)
+    ext = Extension.parse(robot, "joint_compliance:shoulder_lift_joint")
+    truth = hide_effect(truth, ext, fit.q, 0.5e-3, seed=1)
+    data = truth.measure(fit.q, noise=NOISE, rot_noise=None, seed=1001)
+    steps: list[int] = []
+    diagnosis = choice_module._diagnosis
+
+    def recorded(*args: Any, **kwargs: Any) -> Any:
+        steps.append(kwargs.get("step", 1))
+        return diagnosis(*args, **kwargs)
+
+    monkeypatch.setattr(choice_module, "_diagnosis", recorded)
+    cal = pincal.calibrate(robot, data, params="auto", extension="auto")
+    assert cal.choice is not None
+    rounds = cal.choice.rounds
+    assert len(rounds) == 2 and rounds[0].params != rounds[1].params  # the cause re-selected them
+    assert rounds[0].cause == rounds[1].cause == ext.label
+    assert steps[:2] == [1, 2]  # the second round: the second test
+    assert [r.level for r in rounds] == pytest.approx([ALPHA, ALPHA / 2])
+    assert rounds[1].to_dict()["level"] == pytest.approx(ALPHA / 2)
 
 
 def test_extend_auto_names_nothing_on_clean_data(get_robot: Callable[[str], pincal.Robot]) -> None:

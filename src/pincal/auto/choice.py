@@ -8,10 +8,11 @@
   family-wise p-value under the null of the whole screen). A named cause changes which geometric
   parameters pay, so the parameters are chosen again with the cause fitted at every step and the
   diagnosis re-run on them, until it names the cause it named before (at most :data:`MAX_ROUNDS`
-  rounds). Of the rounds that named a cause, the one whose extended model has the lowest
-  cross-validated RMS is kept (all are judged on the same folds). On Gao et al.'s arm the first
-  round names joint 2, the second joint 3, which the third confirms (the full geometry names joint
-  3 at once).
+  rounds). Each round is a test of its own: round ``r`` names a cause at the family-wise level
+  ``ALPHA / r`` (Bonferroni over the rounds). Of the rounds that named a cause, the one whose
+  extended model has the lowest cross-validated RMS is kept (all are judged on the same folds).
+  On Gao et al.'s arm the first round names joint 2, the second joint 3, which the third confirms
+  (the full geometry names joint 3 at once).
 - **Nested cross-validation** of the whole procedure (the choice re-run without each fold):
   the choice's own scores are biased low by the choosing; this estimate is not. It costs K
   choices and fits, so it runs by default only when cheap (:func:`nested_policy`).
@@ -26,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from pincal.auto.diagnosis import Diagnosis, diagnose_with, known_baseline
+from pincal.auto.screen_null import ALPHA
 from pincal.auto.settings import CalibrateOptions
 from pincal.errors import IdentifiabilityError
 from pincal.identify.calibration import Calibration
@@ -52,6 +54,8 @@ class Round:
         cause: the cause the diagnosis named (``EFFECT:JOINT``), or None.
         baseline_cv_rms_mm: the baseline's K-fold cross-validated RMS [mm].
         extended_cv_rms_mm: the extended model's (the baseline's when nothing is named) [mm].
+        level: the family-wise level its diagnosis named a cause at (``ALPHA / r`` in round r; a
+            round on the parameters of an earlier one repeats that round's test).
     """
 
     params: tuple[str, ...] | None
@@ -59,6 +63,7 @@ class Round:
     cause: str | None
     baseline_cv_rms_mm: float
     extended_cv_rms_mm: float
+    level: float = ALPHA
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description."""
@@ -69,6 +74,7 @@ class Round:
             "cause": self.cause or "none",
             "baseline_cv_rms_mm": self.baseline_cv_rms_mm,
             "extended_cv_rms_mm": self.extended_cv_rms_mm,
+            "level": self.level,
         }
 
 
@@ -255,7 +261,12 @@ def choose(
     done: dict[Params, Diagnosis] = {}  # a round on the parameters of an earlier one repeats it
     for _ in range(MAX_ROUNDS):
         try:
-            diag = done[params] if params in done else _diagnosis(setup, fit, options, progress, params)
+            step = len(rounds) + 1  # round r tested at ALPHA / r: a later round is a test of its own
+            diag = (
+                done[params]
+                if params in done
+                else _diagnosis(setup, fit, options, progress, params, step=step)
+            )
         except IdentifiabilityError as exc:  # a fold too small to fit: the geometry alone, said so
             if rounds:
                 break
@@ -264,7 +275,8 @@ def choose(
         named = diag.cause.extension if diag.cause else None
         label = named.label if named else None
         with_cause = cause.label if cause else None
-        rounds.append(Round(params, with_cause, label, diag.baseline_cv_rms_mm, diag.extended_cv_rms_mm))
+        cv = (diag.baseline_cv_rms_mm, diag.extended_cv_rms_mm)
+        rounds.append(Round(params, with_cause, label, *cv, level=ALPHA / diag.step))
         if named is not None and (kept is None or diag.extended_cv_rms_mm < kept[0]):
             kept_choice = replace(base, params=params, selection=sel, extension=named, diagnosis=diag)
             kept = (diag.extended_cv_rms_mm, kept_choice)
