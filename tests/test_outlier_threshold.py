@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pincal.identify.outliers import chi_sf, far_off, noise_threshold
+from pincal.identify.outliers import chi_sf, far_off, noise_threshold, pose_sf
 from pincal.options import THRESHOLD
 
 
@@ -28,6 +28,41 @@ def test_the_threshold_holds_its_family_wise_level_on_noise() -> None:
     )
     spread = np.sqrt(sets * level * (1 - level))
     assert abs(flagged - sets * level) <= 3.5 * spread
+
+
+def _pose_noise(rng: np.random.Generator, n: int, ratio: float) -> np.ndarray:
+    """Scores of ``n`` poses of pure noise: position rows of unit noise, rotation rows ``ratio``."""
+    return np.linalg.norm(
+        np.hstack([rng.standard_normal((n, 3)), ratio * rng.standard_normal((n, 3))]), axis=1
+    )
+
+
+@pytest.mark.parametrize("ratio", [0.5, 2.0])
+def test_pose_survival_matches_draws(ratio: float) -> None:
+    scores = _pose_noise(np.random.default_rng(11), 400_000, ratio)
+    for x in (1.5, 3.0, 5.0, 6.0):
+        drawn = float(np.mean(scores > x))
+        assert pose_sf(x, ratio) == pytest.approx(
+            drawn, abs=4 * np.sqrt(drawn * (1 - drawn) / len(scores)) + 1e-5
+        )
+    assert pose_sf(3.0, 1.0) == chi_sf(3.0, 6)
+
+
+def test_the_pose_threshold_holds_its_level_when_rotation_noise_differs() -> None:
+    """200 data sets of 5,000 pose scores whose rotation rows' noise is twice the position rows',
+    level 0.1: about 20 flag a pose with the threshold of that ratio; six equal components' flags
+    far more."""
+    rng = np.random.default_rng(5)
+    level, n, sets = 0.1, 5000, 200
+    fitting, equal = noise_threshold(n, 6, level, ratio=2.0), noise_threshold(n, 6, level)
+    flagged, naive = 0, 0
+    for _ in range(sets):
+        scores = _pose_noise(rng, n, 2.0)
+        flagged += int(far_off(scores, fitting).any())
+        naive += int(far_off(scores, equal).any())
+    spread = np.sqrt(sets * level * (1 - level))
+    assert abs(flagged - sets * level) <= 3.5 * spread
+    assert naive > sets * level + 3.5 * spread
 
 
 def test_many_poses_raise_the_threshold_few_keep_it() -> None:
