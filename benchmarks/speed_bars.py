@@ -9,12 +9,16 @@ too. Rows (whole processes unless said; medians of ``--repeat`` runs, alternatin
 2. ``pincal diagnose ur5`` on 100 simulated poses: ≤ 1.5 s, 0.42 of the anchor;
 3. the default command on 10,000 simulated Panda pose rows, in-process (``pincal.cli.main`` in a
    process that has imported it, the start-up not counted): ≤ 10 s, 2.8 of the anchor;
-4. with ``--million``: ``pincal calibrate ur5 --params all --extend none`` on 10⁶ simulated rows:
-   ≤ 60 s (16.7 of the anchor) and a peak resident memory ≤ 1.5 GB.
+4. with ``--million``, each ≤ 60 s (16.7 of the anchor) and a peak resident memory ≤ 1.5 GB:
+   ``pincal calibrate ur5 --params all --extend none`` on 10⁶ simulated position rows, the same
+   on 10⁶ pose rows, ``pincal diagnose`` on the position rows, ``pincal tcp`` on 10⁶ flange poses
+   and the default command on the position rows (the inputs of ``benchmarks/scale.py``); with
+   ``--busy`` another process keeps one core busy while they run.
 
 Rows 1 and 2 also run with ``PINCAL_WORKERS=1`` (one process: what the second core gives), and
-every row with ``--baseline SRC`` (another source tree, e.g. ``git archive`` of an older commit,
-put first on ``PYTHONPATH``): before and after in the same run. This is a benchmark, not a test.
+rows 1-3 and the first 10⁶ row with ``--baseline SRC`` (another source tree, e.g. ``git archive``
+of an older commit, put first on ``PYTHONPATH``): before and after in the same run. This is a
+benchmark, not a test.
 
 Each source tree is compiled to bytecode first (:func:`compileall.compile_dir`), as ``pip install .``
 (the README's install) and FIGAROH's install do: where Python may not write bytecode
@@ -24,7 +28,7 @@ which no installed copy pays.
 
 Usage::
 
-    python benchmarks/speed_bars.py [--repeat 3] [--tiago DIR] [--baseline SRC] [--million]
+    python benchmarks/speed_bars.py [--repeat 3] [--tiago DIR] [--baseline SRC] [--million [--busy]]
         [--markdown docs/results/generated/speed_bars.md]
 """
 
@@ -137,6 +141,12 @@ def write_inputs(folder: Path, tiago: Path, million: bool) -> dict[str, Path]:
             "pincal.write_csv(sys.argv[1], pincal.simulate(ur5, n_fit=10**6, n_test=0, seed=0)[1])\n"
         )
         subprocess.run([sys.executable, "-c", code, str(paths["million"])], check=True)
+        for kind in ("pose", "tcp"):  # benchmarks/scale.py's inputs
+            paths[f"million_{kind}"] = folder / f"{kind}_million.csv"
+            code = "import sys, scale; scale.write_input(sys.argv[1], sys.argv[2], 10**6)"
+            subprocess.run(
+                [sys.executable, "-c", code, kind, str(paths[f"million_{kind}"])], check=True, cwd=HERE
+            )
     return paths
 
 
@@ -158,16 +168,41 @@ def make_rows(paths: dict[str, Path], tiago: Path, folder: Path, baseline: Path 
         ),
     ]
     if "million" in paths:
-        argv = ["calibrate", "ur5", str(paths["million"]), "--params", "all", "--extend", "none"]
-        argv += ["--report", out, "--force"]
-        rows.append(Row("10⁶ UR5 rows, --params all --extend none", argv, 60.0))
+        rows += million_rows(paths, out)
     serial = [Row(f"{r.label}, one process", r.argv, r.bar_s, env={"PINCAL_WORKERS": "1"}) for r in rows[:2]]
     before = (
         []
         if baseline is None
-        else [Row(f"{r.label}, baseline", r.argv, r.bar_s, r.in_process, source=baseline) for r in rows]
+        else [Row(f"{r.label}, baseline", r.argv, r.bar_s, r.in_process, source=baseline) for r in rows[:4]]
     )
     return rows + serial + before
+
+
+def million_rows(paths: dict[str, Path], out: str) -> list[Row]:
+    """The 10⁶ rows: the whole geometry on position and on pose rows, ``diagnose``, ``tcp`` and the
+    default command, each ≤ 60 s on the issue's machine."""
+    reported = ["--report", out, "--force"]
+    fixed = ["--params", "all", "--extend", "none", *reported]
+    position, pose, tcp = str(paths["million"]), str(paths["million_pose"]), str(paths["million_tcp"])
+    return [
+        Row("10⁶ UR5 rows, --params all --extend none", ["calibrate", "ur5", position, *fixed], 60.0),
+        Row("10⁶ UR5 pose rows, --params all --extend none", ["calibrate", "ur5", pose, *fixed], 60.0),
+        Row("pincal diagnose, 10⁶ UR5 rows", ["diagnose", "ur5", position, "--json", out, "--force"], 60.0),
+        Row("pincal tcp, 10⁶ flange poses", ["tcp", tcp, "--report", out, "--force"], 60.0),
+        Row(
+            "default command, 10⁶ UR5 rows", ["calibrate", "ur5", position, "--report", out, "--force"], 60.0
+        ),
+    ]
+
+
+def run_busy(row: Row) -> None:
+    """Run ``row`` while another process keeps one core busy."""
+    busy = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+    try:
+        row.run()
+    finally:
+        busy.kill()
+        busy.wait()
 
 
 def anchor_once(tiago: Path) -> float:
@@ -185,6 +220,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--tiago", type=Path, default=TIAGO, help="the TIAGo dataset folder")
     parser.add_argument("--baseline", type=Path, help="another source tree, timed in the same run")
     parser.add_argument("--million", action="store_true", help="also the 10⁶ rows (minutes)")
+    parser.add_argument("--busy", action="store_true", help="another process keeps a core busy (10⁶ rows)")
     parser.add_argument("--markdown", type=Path, help="also write the table in Markdown")
     args = parser.parse_args(argv)
     if args.baseline is not None and not (args.baseline / "pincal" / "__init__.py").is_file():
@@ -201,8 +237,10 @@ def main(argv: list[str] | None = None) -> None:
         for k in range(args.repeat):
             anchors.append(anchor_once(args.tiago))
             for row in rows:
-                if k == 0 or "10⁶" not in row.label:  # the 10⁶ rows once
+                if "10⁶" not in row.label:
                     row.run()
+                elif k == 0:  # the 10⁶ rows once
+                    run_busy(row) if args.busy else row.run()
     anchor = statistics.median(anchors)
     header: list[object] = ["what", "median [s]", "/ anchor", "bar", "holds", "peak [GB]"]
     body: list[list[object]] = [r.cells(anchor) for r in rows]
@@ -210,6 +248,7 @@ def main(argv: list[str] | None = None) -> None:
         f"anchor: FIGAROH's whole TIAGo script, median {anchor:.2f} s of {len(anchors)} runs "
         f"({ANCHOR_THERE} s where the bars were set); load average {load:.1f} at the start, "
         f"{os.cpu_count()} cores"
+        + ("; another process kept one core busy during the 10⁶ rows" if args.busy else "")
     )
     text = "\n".join("  ".join(str(c) for c in row) for row in [header, *body])
     print(text + "\n" + note)
