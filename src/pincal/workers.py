@@ -98,12 +98,13 @@ def _may_fork() -> bool:
 
 
 def share(obj: Any) -> None:
-    """Let worker processes send ``obj`` back by reference, not by value.
+    """Let ``obj`` cross to and from worker processes by reference, not by value.
 
     A worker is forked, so an object the parent held when the pool started is the worker's too,
-    at the same address. An answer that holds such an object (a fold's calibration holds its
-    robot, whose Pinocchio model is 150 kB of pickle) is sent with its id in its place, and the
-    parent puts its own object back there. Only immutable objects may be shared (a robot).
+    at the same address. A task sent to kept workers, or an answer, that holds such an object (a
+    fold's calibration holds its robot, whose Pinocchio model is 150 kB of pickle) goes with its
+    id in its place, and the other side puts its own object back there. Only immutable objects
+    may be shared (a robot).
     """
     _shared[id(obj)] = obj
 
@@ -118,8 +119,8 @@ def parallel_map(
 
     The task is inherited by workers forked for it (any callable, a closure too), or sent pickled
     to the workers kept for the call (:func:`kept_workers`); the answers come back pickled, so
-    bit-for-bit. An exception a task raises
-    is raised here, the one of the lowest index, as the serial loop would raise it.
+    bit-for-bit. An exception a task raises is raised here, the one of the lowest index, as the
+    serial loop would raise it.
 
     Args:
         task: the work of one index.
