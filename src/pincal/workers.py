@@ -128,10 +128,11 @@ def parallel_map(
         workers: worker processes (default :func:`worker_count`); 1 runs the loop here.
         done: called with each index, in order, once its answer is here.
     """
-    n_workers = min(worker_count(workers), count)
+    available = worker_count(workers)
+    n_workers = min(available, count)
     if n_workers <= 1:
         return _serial(task, count, done)
-    kept = _kept(worker_count(workers))
+    kept = _kept(available)
     sent = None if kept is None else kept.payload(task)
     if kept is not None and sent is not None:
         return kept.map(sent, count, done)
@@ -140,16 +141,24 @@ def parallel_map(
     try:
         context = multiprocessing.get_context("fork")
         with context.Pool(n_workers, initializer=_start_worker) as pool:
-            answers = []
-            for k, (ok, answer) in enumerate(pool.imap(_run, range(count), chunksize=1)):
-                if not ok:
-                    raise answer
-                answers.append(_Unpickler(io.BytesIO(answer), held).load())
-                if done is not None:
-                    done(k)
-            return answers
+            return _collected(pool.imap(_run, range(count), chunksize=1), held, done)
     finally:
         _task.pop()
+
+
+def _collected(
+    results: Iterator[tuple[bool, Any]], held: dict[int, Any], done: Callable[[int], None] | None
+) -> list[Any]:
+    """The workers' answers in index order, each read back with the shared objects ``held``
+    (:class:`_Unpickler`); the first exception a task raised is raised here."""
+    answers = []
+    for k, (ok, answer) in enumerate(results):
+        if not ok:
+            raise answer
+        answers.append(_Unpickler(io.BytesIO(answer), held).load())
+        if done is not None:
+            done(k)
+    return answers
 
 
 def run_jobs(jobs: Sequence[Callable[[], Any]]) -> list[Any]:
@@ -285,15 +294,8 @@ class _Kept:
 
     def map(self, sent: bytes, count: int, done: Callable[[int], None] | None) -> list[Any]:
         """:func:`parallel_map` of the pickled task ``sent`` on the kept workers."""
-        answers = []
         jobs = ((sent, k) for k in range(count))
-        for k, (ok, answer) in enumerate(self.pool.imap(_run_sent, jobs, chunksize=1)):
-            if not ok:
-                raise answer
-            answers.append(_Unpickler(io.BytesIO(answer), self.held).load())
-            if done is not None:
-                done(k)
-        return answers
+        return _collected(self.pool.imap(_run_sent, jobs, chunksize=1), self.held, done)
 
     def close(self) -> None:
         """End the workers."""

@@ -101,7 +101,7 @@ class Robot:
     tips: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
-        share(self)  # a worker's answer (a fold's calibration) sends it back by reference
+        share(self)  # to and from worker processes by reference (a fold's calibration holds it)
 
     @property
     def is_tree(self) -> bool:
