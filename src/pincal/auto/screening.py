@@ -177,14 +177,14 @@ class Linearised:
         return sums, columns, np.concatenate(residuals)
 
     def _sums_of(self, extension: AnyEffect | None) -> tuple[GroupSums, np.ndarray]:
-        """The sums holding ``extension``'s columns, and the indices of ``[J E r]`` in them."""
-        n_base = len(self.free)
+        """The sums holding ``extension``'s columns, and the indices of ``[J E]`` in them."""
+        base = np.arange(len(self.free))
         if extension is None:
-            return self.sums, np.append(np.arange(n_base), -1)
+            return self.sums, base
         sums, columns = self.sums, self.columns
         if extension.label not in columns:
             sums, columns, _ = self._pass([extension])
-        return sums, np.concatenate([np.arange(n_base), columns[extension.label], [-1]])
+        return sums, np.concatenate([base, columns[extension.label]])
 
     def folds_fit(self) -> bool:
         """Whether every fold leaves more residual rows than the baseline has unknowns, so that
@@ -197,35 +197,7 @@ class Linearised:
     def screen(self, extension: AnyEffect | None = None) -> Screen:
         """The linearised cross-validation and all-row fit, with ``extension``'s columns or none."""
         sums, take = self._sums_of(extension)
-        n_base = len(self.free)
-        total = sums.gram()[np.ix_(take, take)]
-        norms = np.sqrt(np.diag(total)[:-1])
-        norms = np.where(norms > 0, norms, 1.0)
-        scale = np.append(1.0 / norms, 1.0)  # unit columns: the normal equations stay well scaled
-        total = total * np.outer(scale, scale)
-
-        def cut(gram: np.ndarray) -> np.ndarray:
-            """``gram``'s rows and columns of ``[J E r]``, scaled to unit columns."""
-            return gram[np.ix_(take, take)] * np.outer(scale, scale)
-
-        def fit(gram: np.ndarray) -> np.ndarray:
-            """``[δ; 1]`` for the least-squares step of ``r + [J E] δ`` on the rows of ``gram``."""
-            step = -np.linalg.lstsq(gram[:-1, :-1], gram[:-1, -1], rcond=1e-12)[0]
-            return np.append(step, 1.0)
-
-        squares, entries = 0.0, 0
-        for k in range(self.n_folds):
-            step = fit(cut(sums.gram(k)))
-            squares += max(float(step @ cut(sums.gram(k, held=True)) @ step), 0.0)
-            entries += sums.n_held(k) // min(self.kind.width, 3)
-        step = fit(total)
-        rss = max(float(step @ total @ step), 0.0)
-        jj, je, ee = total[:n_base, :n_base], total[:n_base, n_base:-1], total[n_base:-1, n_base:-1]
-        # what of the effect's columns the geometry cannot absorb (Schur complement, unit columns)
-        schur = ee - je.T @ np.linalg.lstsq(jj, je, rcond=1e-12)[0] if ee.shape[0] else np.ones((1, 1))
-        identifiable = bool(np.sqrt(max(float(np.linalg.eigvalsh(schur).min()), 0.0)) > RCOND)
-        params = step[n_base:-1] / norms[n_base:]
-        return Screen(float(np.sqrt(squares / max(entries, 1))) * 1e3, rss, params, identifiable)
+        return self._screened(sums, [take])[0]
 
     def screen_all(self, pool: Sequence[AnyEffect]) -> tuple[Screen, list[Screen]]:
         """:meth:`screen` of the baseline and of each effect of ``pool``: every fold's fits by
@@ -233,19 +205,25 @@ class Linearised:
         the same figures to rounding as one solve per candidate and fold."""
         if any(ext.label not in self.columns for ext in pool):  # columns summed in another pass
             return self.screen(), [self.screen(ext) for ext in pool]
+        base = np.arange(len(self.free))
+        screens = self._screened(
+            self.sums, [base] + [np.concatenate([base, self.columns[e.label]]) for e in pool]
+        )
+        return screens[0], screens[1:]
+
+    def _screened(self, sums: GroupSums, takes: list[np.ndarray]) -> list[Screen]:
+        """The screen of each take (columns of ``[J E]`` in ``sums``, the baseline's first)."""
         n_base = len(self.free)
-        base = np.arange(n_base)
-        takes = [base] + [np.concatenate([base, self.columns[ext.label]]) for ext in pool]
-        total = self.sums.gram()
+        total = sums.gram()
         norms = np.sqrt(np.diag(total)[:-1])
         norms = np.where(norms > 0, norms, 1.0)
         scale = np.outer(np.append(1.0 / norms, 1.0), np.append(1.0 / norms, 1.0))  # unit columns
         squares, entries = np.zeros(len(takes)), 0
         for k in range(self.n_folds):
-            held = self.sums.gram(k, held=True) * scale
-            for i, (rows, step) in enumerate(_steps(self.sums.gram(k) * scale, takes)):
+            held = sums.gram(k, held=True) * scale
+            for i, (rows, step) in enumerate(_steps(sums.gram(k) * scale, takes)):
                 squares[i] += max(float(step @ held[np.ix_(rows, rows)] @ step), 0.0)
-            entries += self.sums.n_held(k) // min(self.kind.width, 3)
+            entries += sums.n_held(k) // min(self.kind.width, 3)
         total = total * scale
         absorbed = _unabsorbed(total, n_base)
         out = []
@@ -255,7 +233,7 @@ class Linearised:
             identifiable = _identifiable(absorbed[np.ix_(extra, extra)]) if extra.size else True
             cv = float(np.sqrt(squares[i] / max(entries, 1))) * 1e3
             out.append(Screen(cv, rss, step[n_base:-1] / norms[takes[i][n_base:]], identifiable))
-        return out[0], out[1:]
+        return out
 
 
 def _steps(gram: np.ndarray, takes: list[np.ndarray]) -> list[tuple[np.ndarray, np.ndarray]]:
