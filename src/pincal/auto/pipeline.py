@@ -139,12 +139,13 @@ def _calibrated(
     wanted, ext = asked.wanted(), asked.effect(robot)
     setup, choice, wanted, chosen, opts = _chosen(robot, data, what, wanted, ext, asked, progress)
     found_job = functools.partial(fit, setup, wanted, **chosen, **opts.fitting(), start=opts.start)
-    alone_job = _urdf_alone(setup, choice, opts)
-    alone: Protected | None = None
-    if alone_job is None:
+    urdf = _urdf_alone(setup, choice, opts)
+    alone: tuple[Protected, ModelChoice] | None = None
+    if urdf is None:
         found = found_job()
     else:  # independent fits: run together
-        found, alone = run_jobs([found_job, alone_job])
+        found, fitted = run_jobs([found_job, urdf[0]])
+        alone = (fitted, urdf[1])
     bad, scores = screen_outliers(*found.screening, found.free, opts.outliers or 0.0, opts.f_scale)
     if bad.size and choice.diagnosis is not None and choice.diagnosis.candidates:
         bad = _outliers_for_both(setup, choice, bad, wanted, opts)
@@ -157,16 +158,24 @@ def _calibrated(
     return _delivered(found, setup, choice, wanted, test, opts, alone)
 
 
-def _urdf_alone(setup: Setup, choice: ModelChoice, opts: CalibrateOptions) -> Callable[[], Protected] | None:
+def _urdf_alone(
+    setup: Setup, choice: ModelChoice, opts: CalibrateOptions
+) -> tuple[Callable[[], Protected], ModelChoice] | None:
     """The fit of the geometry alone that a complete delivery writes as the URDF (run beside the
-    full model's fit), or None when the delivery has no such fit."""
+    full model's fit) and the choice it records, or None when the delivery has no such fit."""
     if setup.problem.extension is None or opts.deliver != "complete":
         return None
+    geometry, geometric = _geometry(setup, choice, opts)
+    return functools.partial(fit, geometry, geometric.params, **opts.fitting()), geometric
+
+
+def _geometry(setup: Setup, choice: ModelChoice, opts: CalibrateOptions) -> tuple[Setup, ModelChoice]:
+    """The set-up of ``setup``'s geometry without its effects, and the choice of its parameters
+    (:func:`_geometric_choice`)."""
     problem = setup.problem
-    geometry = set_up(
-        problem.model.robot, setup.data, problem.model, problem.measurement.kind, **opts.setup()
-    )
-    return functools.partial(fit, geometry, _geometric_choice(geometry, choice).params, **opts.fitting())
+    kind = problem.measurement.kind
+    geometry = set_up(problem.model.robot, setup.data, problem.model, kind, **opts.setup())
+    return geometry, _geometric_choice(geometry, choice)
 
 
 def _chosen(
@@ -207,24 +216,22 @@ def _delivered(
     wanted: Any,
     test: Dataset | None,
     opts: CalibrateOptions,
-    alone: Protected | None = None,
+    alone: tuple[Protected, ModelChoice] | None = None,
 ) -> Calibration:
     """The fit ``found`` of ``setup`` (on the parameters ``wanted``) as ``opts.deliver`` asks (see
     :class:`~pincal.auto.settings.CalibrateOptions`); ``alone``: the complete delivery's fit of
-    the geometry alone (:func:`_urdf_alone`), when already made."""
+    the geometry alone and its choice (:func:`_urdf_alone`)."""
     if setup.problem.extension is None or opts.deliver == "none":
         return replace(found.assessed(test), choice=choice)
     if opts.deliver == "joint":
         return settled(replace(found.assessed(test), choice=choice), setup.data, test)
-    problem = setup.problem
-    kind = problem.measurement.kind
-    geometry = set_up(problem.model.robot, setup.data, problem.model, kind, **opts.setup())
-    geometric = _geometric_choice(geometry, choice)
-    kept = geometric.params
     if opts.deliver == "complete":  # the URDF: the geometry alone; the sidecar: the full model
-        alone = fit(geometry, kept, **opts.fitting()) if alone is None else alone
+        assert alone is not None, "the complete delivery's URDF is fitted beside the full model"
+        fitted, geometric = alone
         full = settled(replace(found.assessed(test), choice=choice), setup.data, test)
-        return replace(full, urdf_fit=replace(alone.assessed(test), choice=geometric))
+        return replace(full, urdf_fit=replace(fitted.assessed(test), choice=geometric))
+    geometry, geometric = _geometry(setup, choice, opts)
+    kept = geometric.params
     joint = found if kept == wanted else fit(setup, kept, **opts.fitting())  # the same parameters: reused
     return _balanced(setup, geometry, kept, joint, geometric, test, opts)
 
