@@ -25,6 +25,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import pincal
+import pincal.auto.fitting
 from pincal.auto.screening import Linearised
 from pincal.identify import chunked
 from pincal.identify.folds import pose_folds
@@ -218,6 +219,39 @@ def test_problems_on_the_same_poses_share_their_blocks(monkeypatch: pytest.Monke
     for block, alone in zip(chunked.blocks(one), own, strict=True):
         np.testing.assert_array_equal(block.residuals(theta), alone.residuals(theta))
     np.testing.assert_array_equal(fit.rotations(), fit.subset(np.arange(30)).rotations())
+    for block, start in zip(chunked.blocks(one), starts, strict=True):  # views of the poses, no copy
+        assert np.shares_memory(block.data.q, fit.q) and np.shares_memory(
+            block.measured_rotations, fit.rotations()
+        )
+        np.testing.assert_array_equal(block.data.row_numbers, fit.row_numbers[start : start + 7])
+        assert block.data.rows is not None and block.data.rows.base is None  # its own: not a view of all
+
+
+def test_large_data_is_screened_before_any_fit_of_every_pose(monkeypatch: pytest.MonkeyPatch) -> None:
+    """On large data the outlier screen starts from the fit of its random subset of poses: a call
+    that finds an outlier fits every pose only once, without it, and gives what a call on the
+    poses kept gives (to the solver's tolerance), the outlier recorded by its row."""
+    monkeypatch.setattr(chunked, "LARGE_POSES", 100)  # as at full size: the subset is not large itself,
+    monkeypatch.setattr(chunked, "SAMPLE_POSES", 80)  # nor the rank check's 90 varied poses
+    monkeypatch.setattr(chunked, "BLOCK_POSES", 7)
+    ur5 = pincal.load_robot("ur5")
+    q = ur5.random_configurations(150, np.random.default_rng(3), 0.05)
+    data = pincal.random_truth(ur5, seed=4).measure(q, 2e-5, seed=5)
+    data = replace(data, points=data.points + np.where(np.arange(150) == 17, 3e-3, 0.0)[:, None])
+    fitted: list[int] = []
+    solve_rows = pincal.auto.fitting.solve
+
+    def counted(setup: object, *args: object, **kwargs: object) -> object:
+        fitted.append(len(setup.problem.data))  # type: ignore[attr-defined]
+        return solve_rows(setup, *args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(pincal.auto.fitting, "solve", counted)
+    screened = pincal.calibrate(ur5, data, params="all", outliers=6.0)
+    assert [row for row, _ in screened.excluded] == [18]
+    assert 150 not in fitted and 149 in fitted, fitted
+    kept = pincal.calibrate(ur5, data.subset(np.setdiff1d(np.arange(150), [17])), params="all")
+    np.testing.assert_allclose(screened.theta, kept.theta, rtol=0, atol=1e-9)
+    assert screened.train_after.rms_mm == pytest.approx(kept.train_after.rms_mm, rel=1e-9)
 
 
 def test_robust_refit_by_blocks_is_the_refit_by_rows(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -215,7 +215,7 @@ def test_points_jacobian_matches_finite_differences(key: str, kind: str, known: 
     n_rows = 3 * len(problem.data) + int(known)
     assert jac.shape == (n_rows, problem.n_params)
     assert problem.n_params == problem.n_model + 3 * 2 + 3
-    assert len(problem.residuals(theta)) == n_rows == len(problem.row_poses())
+    assert len(problem.residuals(theta)) == n_rows == len(problem.row_poses()) == problem.n_rows()
     jac_fd = np.empty_like(jac)
     steps = np.full(problem.n_params, FD_STEP)
     steps[problem.model.n_params : problem.n_model] *= 1e-3  # an extension's unit is small: rad/(N·m)

@@ -249,7 +249,7 @@ def test_huge_quaternion_entries_are_scaled_not_overflowed(
     RuntimeWarning; with x = 1e308 too, tcp's one error line is the positions'."""
     import warnings
 
-    from pincal.data.dataset import unit_quaternions
+    from pincal.data.csv_table import unit_quaternions
 
     big = np.array([[1e308, 1e308, 0.0, 0.0], [1e308, 0.0, 0.0, 0.0], [0.5, 0.5, 0.5, 0.5]])
     with warnings.catch_warnings():

@@ -95,6 +95,7 @@ def test_rows_jacobian_matches_finite_differences(get_robot, measure: str) -> No
     res, jac = kind.rows(problem, theta, cols)
     n_rows = N_POSES * (N_POSES - 1) // 2 if kind.by_pairs else kind.width * N_POSES
     assert len(res) == n_rows + (1 if kind.fixed_points else 0) == len(kind.owners(problem))
+    assert problem.n_rows() == len(res)  # counted without computing them
     assert np.array_equal(res, kind.rows(problem, theta, None)[0])
     assert jac.shape == (len(res), problem.n_params)
     jac_fd = np.empty_like(jac)

@@ -23,7 +23,7 @@ from pathlib import Path
 import pytest
 
 import pincal
-import pincal.auto.pipeline
+import pincal.auto.fitting
 import pincal.data.dataset
 import pincal.export.urdf_writer
 import pincal.files
@@ -231,7 +231,7 @@ def test_ctrl_c_inside_a_fit(
     def interrupted(*args: object, **kwargs: object) -> None:
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(pincal.auto.pipeline, "solve", interrupted)
+    monkeypatch.setattr(pincal.auto.fitting, "solve", interrupted)
     code, _, err = _run(capfd, *_calibrate(data, "-o", urdf, "--report", report, "--force"))
     assert code == 130
     _one_line(err, "interrupted")
@@ -296,14 +296,14 @@ def test_a_real_ctrl_c_between_the_renames_leaves_new_files_together(
 _CHILD = """
 import signal, sys, time
 signal.signal(signal.SIGINT, signal.default_int_handler)  # as from a terminal, even in the background
-import pincal.auto.pipeline
+import pincal.auto.fitting
 from pincal.cli import main
 
 def slow_solve(*args, **kwargs):
     print("fitting", file=sys.__stdout__, flush=True)  # the command's own stdout waits for its end
     time.sleep(60)
 
-pincal.auto.pipeline.solve = slow_solve
+pincal.auto.fitting.solve = slow_solve
 sys.exit(main(sys.argv[1:]))
 """
 

@@ -67,6 +67,10 @@ class Stacked:
     def _alone(self, theta: np.ndarray) -> np.ndarray:
         return np.delete(theta, self.effect)
 
+    def n_rows(self) -> int:
+        """How many residual rows: the full problem's twice."""
+        return 2 * self.full.n_rows()
+
     def residuals(self, theta: np.ndarray) -> np.ndarray:
         """Full residuals, then √λ times those without the effect."""
         return np.concatenate(
@@ -102,7 +106,7 @@ class Delivered:
         stacked = Stacked(problem, 1.0)
         effect = np.zeros(problem.n_params, dtype=bool)
         effect[stacked.effect] = True
-        n = len(problem.residuals(theta))
+        n = problem.n_rows()
         both = (
             stacked.jacobian(theta, np.flatnonzero(free & ~effect))
             if (free & ~effect).any()
@@ -143,7 +147,7 @@ def choose_weight(setup: Setup, theta: np.ndarray, free: np.ndarray, folds: int,
     groups = held_out_rows(problem, min(folds, len(problem.data)), seed)
     tests = []
     for rows in groups:
-        test = np.zeros(len(problem.residuals(theta)), dtype=bool)
+        test = np.zeros(problem.n_rows(), dtype=bool)
         test[rows] = True
         tests.append(test)
     per = 1 if problem.measurement.measure.by_pairs else 3

@@ -9,7 +9,7 @@ the fitted poses alone (``params="auto"``, ``extension="auto"``, see :mod:`pinca
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import replace
 from typing import Any
 
@@ -18,53 +18,22 @@ import numpy as np
 from pincal.auto.balance import balanced_fit, choose_weight
 from pincal.auto.choice import ModelChoice, choose
 from pincal.auto.delivery import effect_on_top, settled
+from pincal.auto.fitting import Based, first_fit, fit, sample_fit
 from pincal.auto.settings import CalibrateOptions
 from pincal.data.dataset import Dataset
+from pincal.identify import chunked
 from pincal.identify.calibration import Calibration
 from pincal.identify.forward_selection import select_on
-from pincal.identify.guard import DEFAULT_PULL, Protected, Pull, protect
-from pincal.identify.identifiability import RCOND, Identifiability
+from pincal.identify.guard import Protected
+from pincal.identify.identifiability import Identifiability
 from pincal.identify.kfold import cross_validate_with
-from pincal.identify.solver import Setup, assess, identifiable_set, register, screen_outliers, set_up, solve
-from pincal.identify.warm import WarmStart, fits_better
+from pincal.identify.solver import Setup, assess, identifiable_set, register, screen_outliers, set_up
+from pincal.identify.warm import WarmStart
 from pincal.kinematics.effects import AnyEffect, Effects, Extension
 from pincal.kinematics.models import Model
 from pincal.plausibility.judge import judge_calibration
 from pincal.robot.robots import Robot
 from pincal.workers import limited, run_jobs
-
-
-def fit(
-    setup: Setup,
-    params: Sequence[str] | None,
-    *,
-    partial: bool = False,
-    loss: str = "linear",
-    f_scale: float = 1e-4,
-    rcond: float = RCOND,
-    nominal: np.ndarray | None = None,
-    every: Identifiability | None = None,
-    pull: Pull = DEFAULT_PULL,
-    start: WarmStart | None = None,
-) -> Protected:
-    """Register (unless the registration-only θ ``nominal`` is given), find the identifiable set
-    (``every``, when given, is the one of every parameter at ``nominal``: used for ``params``
-    None), choose the pull toward the URDF and solve, and judge the fit against the nominal model
-    (:func:`pincal.identify.guard.protect`); the fit begins at the fit ``start`` when given
-    (:mod:`pincal.identify.warm`: the same minimum, in fewer steps), else at the nominal model."""
-    nominal = register(setup) if nominal is None else nominal  # its first guess is as good a start
-    known = every if params is None else None
-    ident = identifiable_set(setup, nominal, params, partial, rcond) if known is None else known
-    first = nominal if start is None else _warm(setup, start, nominal, ident.identifiable)
-    base, _ = solve(setup, first, ident.identifiable, loss, f_scale)  # at the default pull
-    return protect(setup, nominal, ident, base, pull, loss, f_scale)
-
-
-def _warm(setup: Setup, start: WarmStart, nominal: np.ndarray, free: np.ndarray) -> np.ndarray:
-    """Where a fit of the unknowns ``free`` begins: at ``start``, or at the registration-only θ
-    ``nominal`` when that fits the poses better."""
-    warm = start.fit(setup.problem, nominal, free)
-    return warm if fits_better(setup.problem, warm, nominal) else nominal
 
 
 def _kept_pairs(pairs: str | np.ndarray, n: int, keep: np.ndarray) -> str | np.ndarray:
@@ -138,29 +107,50 @@ def _calibrated(
     """The calibration ``asked`` of ``what`` (model and measure) on ``data``, unjudged."""
     wanted, ext = asked.wanted(), asked.effect(robot)
     setup, choice, wanted, chosen, opts = _chosen(robot, data, what, wanted, ext, asked, progress)
-    found_job = functools.partial(fit, setup, wanted, **chosen, **opts.fitting(), start=opts.start)
+    kwargs = {**chosen, **opts.fitting(), "start": opts.start}
     urdf = _urdf_alone(setup, choice, opts)
-    alone: tuple[Protected, ModelChoice] | None = None
-    if urdf is None:
-        found = found_job()
-    else:  # independent fits: run together
-        found, fitted = run_jobs([found_job, urdf[0]])
-        alone = (fitted, urdf[1])
-    bad, scores = screen_outliers(*found.screening, found.free, opts.outliers or 0.0, opts.f_scale)
-    if bad.size and choice.diagnosis is not None and choice.diagnosis.candidates:
-        bad = _outliers_for_both(setup, choice, bad, wanted, opts)
+    sample = sample_fit(setup, wanted, kwargs) if opts.outliers else None  # large data: screened first
+    found: Based | Protected | None = None
+    if sample is None:
+        found, alone = _fits(setup, wanted, kwargs, urdf)
+        if isinstance(found, Based) and found.screening is None:  # screened at the chosen pull
+            found = found.protected()
+        screening, free, base = found.screening, found.free, found.base
+    else:
+        screening, free, base = (setup, sample.base), sample.free, sample.base
+    assert screening is not None
+    bad, scores = _screened(setup, choice, screening, free, wanted, opts)
     if bad.size:  # leave them out and start again: the choice too is made on the poses kept
-        start = asked.start or WarmStart.at(found.setup.problem, found.base)  # nearly the same poses
+        start = asked.start or WarmStart.at(setup.problem, base)  # nearly the same poses
+        chunked.release(setup.problem)
         return _without(robot, data, what, bad, scores, replace(asked, start=start), test, progress)
+    if found is None:
+        found, alone = _fits(setup, wanted, kwargs, urdf)
+    if isinstance(found, Based):
+        found = found.protected()
     if asked.nested is not False:
         judge = _judge(robot, data, what, asked, progress)
         choice = choice.with_nested(judge, asked.nested is True, len(data))
     return _delivered(found, setup, choice, wanted, test, opts, alone)
 
 
-def _urdf_alone(
-    setup: Setup, choice: ModelChoice, opts: CalibrateOptions
-) -> tuple[Callable[[], Protected], ModelChoice] | None:
+#: The complete delivery's URDF fit: to run (:func:`_urdf_alone`), and run, with its choice.
+UrdfJob = tuple[Callable[[], Protected], ModelChoice]
+Alone = tuple[Protected, ModelChoice]
+
+
+def _fits(
+    setup: Setup, wanted: Any, kwargs: dict[str, Any], urdf: UrdfJob | None
+) -> tuple[Based | Protected, Alone | None]:
+    """The fit of ``setup`` (before its pull is chosen, when it runs alone: the outliers are
+    screened first when they can be) and the complete delivery's URDF fit and choice, run beside it."""
+    if urdf is None:
+        return first_fit(setup, wanted, **kwargs), None
+    found, fitted = run_jobs([functools.partial(fit, setup, wanted, **kwargs), urdf[0]])
+    return found, (fitted, urdf[1])
+
+
+def _urdf_alone(setup: Setup, choice: ModelChoice, opts: CalibrateOptions) -> UrdfJob | None:
     """The fit of the geometry alone that a complete delivery writes as the URDF (run beside the
     full model's fit) and the choice it records, or None when the delivery has no such fit."""
     if setup.problem.extension is None or opts.deliver != "complete":
@@ -216,7 +206,7 @@ def _delivered(
     wanted: Any,
     test: Dataset | None,
     opts: CalibrateOptions,
-    alone: tuple[Protected, ModelChoice] | None = None,
+    alone: Alone | None = None,
 ) -> Calibration:
     """The fit ``found`` of ``setup`` (on the parameters ``wanted``) as ``opts.deliver`` asks (see
     :class:`~pincal.auto.settings.CalibrateOptions`); ``alone``: the complete delivery's fit of
@@ -264,6 +254,22 @@ def _balanced(
     return replace(effect_on_top(alone, setup.problem.extension, data, test), balance=balance)
 
 
+def _screened(
+    setup: Setup,
+    choice: ModelChoice,
+    screening: tuple[Setup, np.ndarray],
+    free: np.ndarray,
+    wanted: Any,
+    opts: CalibrateOptions,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The outlier poses of the fit ``screening`` (its problem and θ, the unknowns ``free``), and
+    every pose's score [m] (:func:`pincal.identify.solver.screen_outliers`)."""
+    bad, scores = screen_outliers(*screening, free, opts.outliers or 0.0, opts.f_scale)
+    if bad.size and choice.diagnosis is not None and choice.diagnosis.candidates:
+        bad = _outliers_for_both(setup, choice, bad, wanted, opts)
+    return bad, scores
+
+
 def _outliers_for_both(
     setup: Setup, choice: ModelChoice, bad: np.ndarray, wanted: Any, opts: CalibrateOptions
 ) -> np.ndarray:
@@ -278,8 +284,8 @@ def _outliers_for_both(
     robot, kind = problem.model.robot, problem.measurement.kind
     other = set_up(robot, problem.data, problem.model, kind, extension=best, **opts.setup())
     params = choice.params if wanted == "auto" else wanted
-    found = fit(other, params, **{**opts.fitting(), "partial": True})
-    again, _ = screen_outliers(*found.screening, found.free, opts.outliers or 0.0, opts.f_scale)
+    found = first_fit(other, params, **{**opts.fitting(), "partial": True})
+    again, _ = screen_outliers(*found.screened_on(), found.free, opts.outliers or 0.0, opts.f_scale)
     return np.intersect1d(bad, again)
 
 

@@ -28,7 +28,7 @@ from pincal.robot.robots import Robot
 
 #: How geometry and an effect share the fit (see :attr:`CalibrateOptions.deliver`).
 DELIVERIES = ("complete", "balanced", "joint", "none")
-#: The options of each fit (:func:`pincal.auto.pipeline.fit`'s keywords).
+#: The options of each fit (:func:`pincal.auto.fitting.fit`'s keywords).
 FITTING = ("partial", "loss", "f_scale", "rcond", "pull")
 
 

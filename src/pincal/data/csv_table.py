@@ -270,3 +270,13 @@ def check_locked(path: str | Path, names: Sequence[str], values: np.ndarray, deg
                 f"a locked joint is held at its neutral value, so drop locked={name} to calibrate "
                 "with its values"
             )
+
+
+def unit_quaternions(path: str | Path, quats: np.ndarray) -> np.ndarray:
+    """Quaternions (N, 4) scaled to unit length; one of zero length is refused, naming its data row."""
+    size = np.abs(quats).max(axis=1, keepdims=True)  # first: a norm overflows on entries of 1e308
+    zero = np.flatnonzero(size[:, 0] < 1e-9)
+    if zero.size:
+        raise DataError(f"{path}: data row {zero[0] + 1}: the quaternion qw,qx,qy,qz is zero, not a rotation")
+    scaled = quats / size
+    return scaled / np.linalg.norm(scaled, axis=1, keepdims=True)

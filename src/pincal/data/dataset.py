@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pincal.data import csv_table
 from pincal.data.csv_table import check_locked, content_lines, parse_header, quaternion_columns, read_columns
 from pincal.data.directions import move_directions
 from pincal.data.markers import check_seen, marker_labels, observations, read_marker_table
@@ -125,12 +126,17 @@ class Dataset:
             axis=1,
         )
 
-    def subset(self, index: Sequence[int] | np.ndarray) -> Dataset:
-        """The poses at ``index`` (row numbers are kept)."""
-        idx = np.asarray(index)
+    def subset(self, index: Sequence[int] | np.ndarray | slice) -> Dataset:
+        """The poses at ``index`` (row numbers are kept); a slice's subset holds views of these
+        arrays, not copies."""
+        idx = index if isinstance(index, slice) else np.asarray(index)
         per_pose = ("q", "points", "quaternions", "labels", "spread", "marker")
         chosen = {name: getattr(self, name)[idx] for name in per_pose if getattr(self, name) is not None}
-        return replace(self, rows=self.row_numbers[idx], directions=self.moves()[idx], **chosen)
+        rows = np.array(self.row_numbers[idx])  # a copy: not a view of a temporary
+        sub = replace(self, rows=rows, directions=self.moves()[idx], **chosen)
+        if isinstance(idx, slice) and "_rotations" in self.__dict__:  # worked out already: a view
+            sub.__dict__["_rotations"] = self._rotations[idx]
+        return sub
 
     def split(self, fraction: float, seed: int = 0) -> tuple[Dataset, Dataset]:
         """Random (fit, held-out) split, ``fraction`` of the poses held out."""
@@ -268,7 +274,7 @@ def read_csv(
     n = len(joint_names)
     q = joint_values(values[:, :n], degrees, units, prismatic)
     points = values[:, n : n + 3] * UNITS[units]
-    quats = unit_quaternions(path, values[:, n + 3 : n + 7]) if quat_order else None
+    quats = csv_table.unit_quaternions(path, values[:, n + 3 : n + 7]) if quat_order else None
     check_locked(path, still, values[:, n + 3 + len(quat_order) :], degrees)
     return Dataset(tuple(joint_names), q, points, quats)
 
@@ -338,13 +344,3 @@ def joint_values(
     from pincal.units import joints_from_file
 
     return joints_from_file(values, degrees, units, prismatic)
-
-
-def unit_quaternions(path: str | Path, quats: np.ndarray) -> np.ndarray:
-    """Quaternions (N, 4) scaled to unit length; one of zero length is refused, naming its data row."""
-    size = np.abs(quats).max(axis=1, keepdims=True)  # first: a norm overflows on entries of 1e308
-    zero = np.flatnonzero(size[:, 0] < 1e-9)
-    if zero.size:
-        raise DataError(f"{path}: data row {zero[0] + 1}: the quaternion qw,qx,qy,qz is zero, not a rotation")
-    scaled = quats / size
-    return scaled / np.linalg.norm(scaled, axis=1, keepdims=True)

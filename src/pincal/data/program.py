@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from pincal.data.csv_table import quaternion_columns
-from pincal.data.dataset import csv_columns, joint_values, read_table, unit_quaternions
+from pincal.data.csv_table import quaternion_columns, unit_quaternions
+from pincal.data.dataset import csv_columns, joint_values, read_table
 from pincal.errors import DataError
 from pincal.options import UNITS
 from pincal.robot.robots import Robot

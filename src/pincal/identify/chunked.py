@@ -70,14 +70,20 @@ def blocks(problem: ProblemRows) -> list[ProblemRows]:
     return made
 
 
+def release(problem: ProblemRows) -> None:
+    """Drop ``problem``'s blocks and what they keep (the tip frames of their last geometry, 96 B
+    a pose), as a call that starts again on other poses does."""
+    problem.__dict__.pop("_blocks", None)
+
+
 def data_blocks(data: Dataset) -> list[Dataset]:
     """``data``'s consecutive blocks of :data:`BLOCK_POSES` poses, made once per data set: the
-    problems on the same poses (the registration's, the fit's, the guard's) share them rather
-    than each holding a copy of every pose."""
+    problems on the same poses (the registration's, the fit's, the guard's) share them, and each
+    holds views of ``data``'s arrays, not a copy of its poses."""
     made = data.__dict__.get("_blocks")
     if made is None:
         n = len(data)
-        made = [data.subset(np.arange(a, min(a + BLOCK_POSES, n))) for a in range(0, n, BLOCK_POSES)]
+        made = [data.subset(slice(a, min(a + BLOCK_POSES, n))) for a in range(0, n, BLOCK_POSES)]
         data.__dict__["_blocks"] = made
     return made
 

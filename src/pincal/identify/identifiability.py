@@ -19,6 +19,7 @@ import numpy as np
 from pincal.data.checks import spread
 from pincal.data.dataset import Dataset
 from pincal.errors import IdentifiabilityError
+from pincal.identify.lm import triangle_of
 from pincal.identify.measurements import Problem
 from pincal.kinematics.chain import Chain, forward
 from pincal.robot.robots import Robot
@@ -100,8 +101,8 @@ def analyse(
     reasons = dict(held or {})
     cand = np.flatnonzero(candidates)
     js = jacobian[:, cand] * scale[cand]
-    if js.shape[0] > js.shape[1]:  # same Gram matrix, far fewer rows: R of a QR
-        js = np.linalg.qr(js, mode="r")
+    if js.shape[0] > js.shape[1]:  # same Gram matrix, far fewer rows: R of a QR, by pieces (memory)
+        js = triangle_of(js)
     norms = np.linalg.norm(js, axis=0)
     if cand.size == 0 or not np.any(norms > 0):
         raise IdentifiabilityError(
@@ -158,13 +159,13 @@ def lost_parameters(
     cand = np.flatnonzero(candidates)
     ref = reference[:, cand] * scale[cand]
     if ref.shape[0] > ref.shape[1]:
-        ref = np.linalg.qr(ref, mode="r")
+        ref = triangle_of(ref)
     sv_ref = np.linalg.svd(ref, compute_uv=False)
     rank_ref = int(np.sum(sv_ref > rcond * sv_ref[0])) if sv_ref.size else 0
     keep = np.sort(pivots(ref, rank_ref))  # a set the varied poses identify
     js = jacobian[:, cand[keep]] * scale[cand[keep]]
     if js.shape[0] > js.shape[1]:
-        js = np.linalg.qr(js, mode="r")
+        js = triangle_of(js)
     _, sv, vt = np.linalg.svd(js, full_matrices=True)
     sv_full = np.zeros(len(keep))
     sv_full[: len(sv)] = sv

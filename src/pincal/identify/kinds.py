@@ -96,6 +96,11 @@ class MeasurementKind:
         tip_only = cols is None or not bool(np.any(cols < problem.n_model))
         return problem.target_frames(theta, in_instrument=self.registered, tip_only=tip_only)
 
+    def n_rows(self, problem: ProblemRows) -> int:
+        """How many residual rows :meth:`rows` gives on ``problem``, without computing them: ``width``
+        per pose, then one per known distance between fixed points."""
+        return len(problem.data) * self.width + len(problem.measurement.point_distances)
+
     def owners(self, problem: ProblemRows) -> np.ndarray:
         """The pose(s) each residual row belongs to (rows, k): k = 2 for pairs, else 1 (-1: none,
         as a known distance's row)."""
@@ -192,6 +197,10 @@ class Distance(MeasurementKind):
         jac_v = problem.target_jacobian(theta, cols, frames, (rot, pos))
         u = diff / np.where(dist > 0, dist, 1.0)[:, None]  # a pose paired with itself: no direction
         return res, np.einsum("pk,pkc->pc", u, jac_v[i] - jac_v[j])
+
+    def n_rows(self, problem: ProblemRows) -> int:
+        """One row per pair of poses."""
+        return len(problem.pairs)
 
     def owners(self, problem: ProblemRows) -> np.ndarray:
         """The two poses of each pair (P, 2)."""

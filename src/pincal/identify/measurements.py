@@ -244,6 +244,10 @@ class Problem:
         mask = frames.acting(k)
         return moved if mask is None else moved * mask[:, :, 0]
 
+    def n_rows(self) -> int:
+        """How many residual rows :meth:`residuals` gives (counted, not computed)."""
+        return self.measurement.measure.n_rows(self)
+
     def residuals(self, theta: np.ndarray) -> np.ndarray:
         """Stacked residuals [m] (see the module docstring)."""
         return self.rows(theta, None)[0]

@@ -107,13 +107,9 @@ def choose_weight(
         loss: the fit's loss: the evidence is that of Gaussian residuals, so with a robust loss
             ``auto`` keeps :data:`pincal.identify.solver.PRIOR_WEIGHT` (said in ``chosen_by``).
     """
-    given = parse_prior(prior)
-    if given is None and not free[: setup.model.n_params].any():
-        return _fixed(setup, start, free, setup.prior_weight, "nothing pulled")
-    if given is None and loss != "linear":
-        return _fixed(setup, start, free, setup.prior_weight, "default (robust loss: no Gaussian evidence)")
-    if given is not None:
-        return _fixed(setup, start, free, given, "given")
+    fixed = fixed_weight(setup, free, prior, loss)
+    if fixed is not None:
+        return _fixed(setup, start, free, *fixed)
     scores, steps = _curve(setup, start, free, WEIGHTS)
     best = int(np.argmax(scores))
     chosen = replace(setup, prior_weight=WEIGHTS[best])
@@ -121,6 +117,19 @@ def choose_weight(
     stepped[free] += steps[best] * setup.scale[free]
     theta, result = solve(chosen, stepped, free)
     return PriorChoice(chosen.prior_weight, "evidence", tuple(zip(WEIGHTS, scores))), chosen, theta, result
+
+
+def fixed_weight(setup: Setup, free: np.ndarray, prior: float | str, loss: str) -> tuple[float, str] | None:
+    """The pull's weight and how it was set, when the evidence does not choose it (as
+    :func:`choose_weight` says; None: the evidence chooses it)."""
+    given = parse_prior(prior)
+    if given is not None:
+        return given, "given"
+    if not free[: setup.model.n_params].any():
+        return setup.prior_weight, "nothing pulled"
+    if loss != "linear":
+        return setup.prior_weight, "default (robust loss: no Gaussian evidence)"
+    return None
 
 
 def evidence_curve(

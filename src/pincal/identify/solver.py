@@ -187,12 +187,13 @@ def solve(
         return np.vstack([problem.jacobian(full(sub), free), held])
 
     x_scale = setup.scale[free] * 1e-3
-    if loss == "linear" and len(problem.residuals(theta)) >= free.sum():
+    enough = problem.n_rows() >= free.sum()
+    if loss == "linear" and enough:
         big = chunked.lm_triangle(problem, full, free, x_scale, (prior, nominal[geometric]))  # issue 33
         result = levenberg_marquardt(
             residuals, jacobian, theta[free], x_scale, max_nfev=MAX_EVALUATIONS, triangle=big
         )
-    elif loss == "soft_l1" and len(problem.residuals(theta)) >= free.sum():  # the outlier screen's refit
+    elif loss == "soft_l1" and enough:  # the outlier screen's refit
         rooted, rooted_jacobian = soft_l1_roots(residuals, jacobian, f_scale)
         big = chunked.lm_triangle(problem, full, free, x_scale, (prior, nominal[geometric]), f_scale)
         result = levenberg_marquardt(

@@ -35,7 +35,7 @@ class WarmStart:
         n_model: how many of them are the model's and the effects' (the rest: registration,
             fixed points, tool).
         measurement: its measurement model (the first guesses its twists are taken about).
-        theta: its fit at the default pull (the solve a fit begins with, :func:`pincal.auto.pipeline.fit`).
+        theta: its fit at the default pull (the solve a fit begins with, :func:`pincal.auto.fitting.fit`).
     """
 
     names: tuple[str, ...]

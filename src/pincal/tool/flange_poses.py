@@ -9,7 +9,8 @@ import numpy as np
 import pinocchio as pin
 
 from pincal.data.checks import bounded_spread
-from pincal.data.dataset import UNITS, csv_columns, read_table, unit_quaternions
+from pincal.data.csv_table import unit_quaternions
+from pincal.data.dataset import UNITS, csv_columns, read_table
 from pincal.errors import DataError
 from pincal.robot.robots import Robot
 from pincal.tool.tcp import euler_zyx
