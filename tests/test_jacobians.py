@@ -226,3 +226,21 @@ def test_position_residual_joint_derivative_equals_pinocchio(get_robot, name: st
         ).residuals(theta)
         by_q[:, :, j] = ((plus - minus) / (2 * FD_STEP)).reshape(n_poses, 3)
     assert relative_error(expected, by_q) <= FD_RTOL
+
+
+def test_one_frame_for_every_point_is_that_frame_repeated() -> None:
+    """The registration's columns (one frame, every point): the columns of that frame repeated for
+    each point, velocity and angular velocity, to rounding."""
+    from pincal.kinematics.chain import twist_columns
+
+    rng = np.random.default_rng(8)
+    frame = pin.SE3.Random()
+    points, zeta = rng.normal(size=(40, 3)), rng.normal(size=(6, 5))
+    one = twist_columns(frame.rotation, frame.translation, zeta, points)
+    rot, pos = np.tile(frame.rotation, (40, 1, 1)), np.tile(frame.translation, (40, 1))
+    each = twist_columns(rot, pos, zeta, points)
+    for got, want in zip(one, each, strict=True):
+        assert got is not None and want is not None and got.shape == want.shape == (40, 3, 5)
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-13)
+    v_by_hand = rot @ zeta[:3] + np.cross(rot @ zeta[3:], (points - pos)[:, :, None], axis=1)
+    np.testing.assert_allclose(one[0], v_by_hand, rtol=0, atol=1e-13)

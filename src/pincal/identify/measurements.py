@@ -279,6 +279,8 @@ class Problem:
             v, _ = twist_columns(k_rot, k_pos, zeta, pos, rotation=False)
             if to_log is None:
                 return v, None
+            if k_rot.shape == (3, 3):  # one frame for every pose (the registration's)
+                return v, stacked_dot(to_log, k_rot @ zeta[3:])
             return v, stacked_dot(to_log @ k_rot, zeta[3:])
 
         def add(k_rot: np.ndarray, k_pos: np.ndarray, zeta: np.ndarray, where: np.ndarray) -> None:

@@ -188,12 +188,28 @@ def twist_columns(
         The point's velocity ``R ζ_v + (R ζ_ω) × (point - p)`` (N, 3, m) [m/unit] and the
         angular velocity ``R ζ_ω`` (N, 3, m) [rad/unit] (None unless ``rotation``).
     """
-    if rot.shape != (len(point), 3, 3):  # one frame for every point
+    if rot.shape == (3, 3):  # one frame for every point: its columns once, then a cross product
+        return _one_frame_columns(rot, pos, zeta, point, rotation)
+    if rot.shape != (len(point), 3, 3):
         rot = np.broadcast_to(rot, (len(point), 3, 3))
     rot = np.ascontiguousarray(rot)
     arm = skew(point - pos) @ rot  # [lever]× R: v = R ζ_v - lever × (R ζ_ω)
     v = stacked_dot(np.concatenate([rot, -arm], axis=2), zeta)
     return v, stacked_dot(rot, zeta[3:]) if rotation else None
+
+
+def _one_frame_columns(
+    rot: np.ndarray, pos: np.ndarray, zeta: np.ndarray, point: np.ndarray, rotation: bool
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """:func:`twist_columns` of one frame ``R`` (3, 3), ``p`` (3,) for every point: ``R ζ_v`` and
+    ``R ζ_ω`` are the same for all, and each point adds ``(R ζ_ω) × (point - p)``."""
+    along, turn = rot @ zeta[:3], rot @ zeta[3:]  # (3, m) each
+    x, y, z = ((point - pos).T[i][:, None] for i in range(3))  # (N, 1) each
+    v = np.empty((len(point), 3, zeta.shape[1]))
+    v[:, 0] = along[0] + turn[1] * z - turn[2] * y
+    v[:, 1] = along[1] + turn[2] * x - turn[0] * z
+    v[:, 2] = along[2] + turn[0] * y - turn[1] * x
+    return v, np.broadcast_to(turn, v.shape).copy() if rotation else None
 
 
 def summed_columns(
