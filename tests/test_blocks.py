@@ -275,3 +275,31 @@ def test_robust_refit_by_blocks_is_the_refit_by_rows(monkeypatch: pytest.MonkeyP
     assert blocked_result.cost == pytest.approx(dense_result.cost, rel=1e-9)
     plain, _ = solve(setup, start, free)
     assert np.max(np.abs(plain - dense)) > 1e-6, "the outlier moves a plain fit: the test can tell"
+
+
+def test_block_groups_give_the_same_passes_in_one_process_or_two(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A large problem's triangle and normal equations are made by runs of blocks side by side:
+    bit for bit those of one process, and the triangle is that of every row at once (its Gram
+    matrix to rounding)."""
+    robot = pincal.load_robot("ur5")
+    _, fit, _ = pincal.simulate(robot, n_fit=40, n_test=0, seed=2, rot_noise=5e-4)
+    problem = set_up(robot, fit, "placements", "pose").problem
+    theta = problem.initial_theta() + np.random.default_rng(2).normal(0.0, 1e-3, problem.n_params)
+    free, scale = np.ones(problem.n_params, dtype=bool), np.full(problem.n_params, 1e-3)
+    res, jac = problem.rows(theta, np.arange(problem.n_params))  # every row at once, before the blocks
+    whole = np.column_stack([jac * scale, res])
+    _tiny_blocks(monkeypatch)
+    problem = Problem(problem.model, problem.measurement, fit)
+    none = (np.zeros((0, problem.n_params)), np.zeros(0))
+    answers = []
+    for workers in ("1", "2"):
+        monkeypatch.setenv("PINCAL_WORKERS", workers)
+        terms = chunked.normal_terms(problem, theta, free)
+        answers.append((chunked.triangle(problem, theta, free, scale, none), terms))
+    (tri_1, terms_1), (tri_2, terms_2) = answers
+    np.testing.assert_array_equal(tri_1, tri_2)
+    for one, two in zip(terms_1, terms_2, strict=True):
+        np.testing.assert_array_equal(one, two)
+    big = np.abs(whole).max() ** 2
+    np.testing.assert_allclose(tri_1.T @ tri_1, whole.T @ whole, rtol=1e-10, atol=1e-12 * big)
+    np.testing.assert_allclose(terms_1[0], jac.T @ jac, rtol=1e-10, atol=1e-12 * np.abs(jac).max() ** 2)

@@ -9,7 +9,10 @@ poses is the stack of the problems on blocks of :data:`BLOCK_POSES` poses. Above
   at a million poses);
 - the Levenberg-Marquardt step (:mod:`pincal.identify.lm`) uses the triangle R of the QR of ``[J r]``,
   built block by block as the QR of ``[R; next block]`` (the same triangle as one QR of the
-  whole matrix, up to the signs of its rows), so the 3N × P Jacobian is never held;
+  whole matrix, up to the signs of its rows), so the 3N × P Jacobian is never held; each of
+  :data:`GROUPS` runs of blocks makes its own triangle, on a core of its own, and the triangles
+  are merged by one more QR (the normal equations of the pull's evidence and of the check across
+  the joint limits are summed the same way);
 - the parameters' standard deviations use ``JᵀJ`` summed block by block;
 - the identifiable set, and a fit with a robust loss (outlier screening), are found on a random
   subset of :data:`SAMPLE_POSES` poses (seed 0): which parameters the poses identify is a
@@ -21,7 +24,7 @@ Distance and fixed-point data (rows of pairs, points shared by rows) are not spl
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import replace
 from typing import Any, ClassVar, Protocol, TypeVar
 
@@ -31,6 +34,7 @@ from pincal.data.dataset import Dataset
 from pincal.identify.lm import soft_l1_rows, soft_l1_slopes, triangle_of
 from pincal.identify.rows import ProblemRows
 from pincal.kinematics.chain import Frames
+from pincal.workers import parallel_map
 
 
 class _Posed(Protocol):
@@ -44,6 +48,7 @@ class _Posed(Protocol):
 
 
 _Setup = TypeVar("_Setup", bound=_Posed)
+_T = TypeVar("_T")
 
 #: Poses above which a problem works block by block.
 LARGE_POSES = 50_000
@@ -51,6 +56,9 @@ LARGE_POSES = 50_000
 BLOCK_POSES = 20_000
 #: Poses of the random subset the identifiable set and a robust fit are found on.
 SAMPLE_POSES = 50_000
+#: Runs of consecutive blocks whose triangles and normal equations are made apart and then merged
+#: (side by side on two cores; one process makes the same groups, so the same answer).
+GROUPS = 2
 
 
 def is_large(problem: ProblemRows, above: int | None = None) -> bool:
@@ -134,13 +142,28 @@ def triangle(
     with the rows ``extra`` (their Jacobian and residuals) below the data's, block by block; with
     ``f_scale`` [m], of the soft-L1 loss's rooted rows (:func:`pincal.identify.lm.soft_l1_roots`)."""
     cols = np.arange(problem.n_params)[free]
-    tri = None
-    for block in blocks(problem):
-        r, j = block.rows(theta, cols)
-        _forget(block)
-        tri = triangle_of(_stacked(j, r, x_scale, f_scale), tri)
+
+    def group(parts: list[ProblemRows]) -> np.ndarray:
+        tri = None
+        for block in parts:
+            r, j = block.rows(theta, cols)
+            _forget(block)
+            tri = triangle_of(_stacked(j, r, x_scale, f_scale), tri)
+        assert tri is not None
+        return tri
+
+    tri = triangle_of(np.vstack(_grouped(problem, group)))  # the groups' triangles merged
     jac, res = extra
     return triangle_of(_stacked(jac, res, x_scale, f_scale), tri)
+
+
+def _grouped(problem: ProblemRows, each: Callable[[list[ProblemRows]], _T]) -> list[_T]:
+    """``each`` of the :data:`GROUPS` runs of consecutive blocks of ``problem``, side by side in
+    worker processes (:func:`pincal.workers.parallel_map`: the same answers in one process)."""
+    parts = blocks(problem)
+    size = -(-len(parts) // GROUPS)
+    groups = [parts[a : a + size] for a in range(0, len(parts), size)]
+    return parallel_map(lambda k: each(groups[k]), len(groups))
 
 
 def _stacked(jac: np.ndarray, res: np.ndarray, x_scale: np.ndarray, f_scale: float | None) -> np.ndarray:
@@ -154,29 +177,7 @@ def _stacked(jac: np.ndarray, res: np.ndarray, x_scale: np.ndarray, f_scale: flo
 def gram(problem: ProblemRows, theta: np.ndarray, free: np.ndarray) -> np.ndarray:
     """``JᵀJ`` over the free columns (P, P), summed block by block for a large problem."""
     cols = np.arange(problem.n_params)[free]
-    if not is_large(problem):
-        j = problem.jacobian(theta, cols)
-        return j.T @ j
-    out = np.zeros((len(cols), len(cols)))
-    for block in blocks(problem):
-        j = block.rows(theta, cols)[1]
-        _forget(block)
-        out += j.T @ j
-    return out
-
-
-def row_blocks(
-    problem: ProblemRows, theta: np.ndarray, cols: np.ndarray
-) -> Iterator[tuple[np.ndarray, np.ndarray]]:
-    """Residuals and Jacobian rows (columns ``cols``) of ``problem``: block by block for a large
-    problem (each block's rows are residual rows of whole poses, in order), else all at once."""
-    if not is_large(problem):
-        yield problem.rows(theta, cols)
-        return
-    for block in blocks(problem):
-        rows = block.rows(theta, cols)
-        _forget(block)
-        yield rows
+    return block_sums(problem, theta, cols, lambda res, jac: (jac.T @ jac,))[0]
 
 
 def normal_terms(
@@ -185,14 +186,44 @@ def normal_terms(
     """``JᵀJ`` (P, P), ``Jᵀr`` (P,), ``rᵀr`` and the number of rows, over the free columns, block
     by block for a large problem (the Jacobian of every pose is never held)."""
     cols = np.arange(problem.n_params)[free]
-    parts = blocks(problem) if is_large(problem) else [problem]
-    gram, grad, rr, rows = np.zeros((len(cols), len(cols))), np.zeros(len(cols)), 0.0, 0
-    for part in parts:
-        res, jac = part.rows(theta, cols)
-        if part is not problem:
-            _forget(part)
-        gram, grad, rr, rows = gram + jac.T @ jac, grad + jac.T @ res, rr + float(res @ res), rows + len(res)
-    return gram, grad, rr, rows
+    gram, grad, rr, rows = block_sums(problem, theta, cols, _normal)
+    return gram, grad, float(rr), int(rows)
+
+
+def _normal(res: np.ndarray, jac: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, int]:
+    """One block's terms of :func:`normal_terms`."""
+    return jac.T @ jac, jac.T @ res, float(res @ res), len(res)
+
+
+#: Terms of a block's rows summed over a problem's (:func:`block_sums`): arrays and numbers.
+Terms = tuple[Any, ...]
+Summand = Callable[[np.ndarray, np.ndarray], Terms]
+
+
+def block_sums(problem: ProblemRows, theta: np.ndarray, cols: np.ndarray, summand: Summand) -> Terms:
+    """The sum over ``problem``'s rows of ``summand(residuals, Jacobian rows)`` (a tuple of arrays
+    and numbers; columns ``cols``): for a large problem, block by block (each block's rows are
+    residual rows of whole poses, in order), the :data:`GROUPS` runs of blocks side by side."""
+    if not is_large(problem):
+        return summand(*problem.rows(theta, cols))
+
+    def group(parts: list[ProblemRows]) -> Terms:
+        total: Terms = ()
+        for block in parts:
+            terms = summand(*block.rows(theta, cols))
+            _forget(block)
+            total = _added(total, terms)
+        return total
+
+    total: Terms = ()
+    for terms in _grouped(problem, group):
+        total = _added(total, terms)
+    return total
+
+
+def _added(total: Terms, terms: Terms) -> Terms:
+    """``terms`` added to ``total`` term by term (``()``: nothing yet)."""
+    return terms if not total else tuple(a + b for a, b in zip(total, terms))
 
 
 def lm_triangle(

@@ -63,14 +63,17 @@ def pose_std(
     std = np.zeros(problem.n_params)
     scale = scale[free]
     width = problem.measurement.measure.width
-    grams, squares, counts = np.zeros((2, len(scale), len(scale))), np.zeros(2), np.zeros(2)
-    for res, jac in chunked.row_blocks(problem, theta, np.arange(problem.n_params)[free]):
+
+    def by_kind(res: np.ndarray, jac: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         jac = jac * scale
         turned = (np.arange(len(res)) % width) >= 3  # a block's rows start at a pose's first row
-        for kind, rows in enumerate((turned, ~turned)):
-            grams[kind] += jac[rows].T @ jac[rows]
-            squares[kind] += float(res[rows] @ res[rows])
-            counts[kind] += float(np.count_nonzero(rows))
+        kinds = (turned, ~turned)
+        grams = np.stack([jac[rows].T @ jac[rows] for rows in kinds])
+        squares = np.array([float(res[rows] @ res[rows]) for rows in kinds])
+        return grams, squares, np.array([float(np.count_nonzero(rows)) for rows in kinds])
+
+    cols = np.arange(problem.n_params)[free]
+    grams, squares, counts = chunked.block_sums(problem, theta, cols, by_kind)
     pen = np.arange(int(free.sum())) < int(free[: problem.model.n_params].sum())
     inverse = np.linalg.pinv(grams.sum(axis=0) + weight**2 * np.diag(pen.astype(float)))
     left = counts - np.einsum("ij,kji->k", inverse, grams)  # Σ (1 - h) of each kind
