@@ -303,3 +303,28 @@ def test_block_groups_give_the_same_passes_in_one_process_or_two(monkeypatch: py
     big = np.abs(whole).max() ** 2
     np.testing.assert_allclose(tri_1.T @ tri_1, whole.T @ whole, rtol=1e-10, atol=1e-12 * big)
     np.testing.assert_allclose(terms_1[0], jac.T @ jac, rtol=1e-10, atol=1e-12 * np.abs(jac).max() ** 2)
+
+
+def test_a_given_pull_or_robust_loss_makes_no_subset_fit(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The subset's fit serves the screen only when it looks at the default pull's fit: with a given
+    pull or a robust loss it is not made (the screen looks at the fit at that pull), and by default
+    it is."""
+    monkeypatch.setattr(chunked, "LARGE_POSES", 100)
+    monkeypatch.setattr(chunked, "SAMPLE_POSES", 80)
+    ur5 = pincal.load_robot("ur5")
+    q = ur5.random_configurations(150, np.random.default_rng(3), 0.05)
+    setup = set_up(ur5, pincal.random_truth(ur5, seed=4).measure(q, 2e-5, seed=5), "placements", "position")
+    fitted: list[int] = []
+    first = pincal.auto.fitting.first_fit
+
+    def counted(on: object, *args: object, **kwargs: object) -> object:
+        fitted.append(len(on.problem.data))  # type: ignore[attr-defined]
+        return first(on, *args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(pincal.auto.fitting, "first_fit", counted)
+    given = {"pull": pincal.identify.guard.Pull(weight=0.1)}
+    assert pincal.auto.fitting.sample_fit(setup, None, given) is None
+    assert pincal.auto.fitting.sample_fit(setup, None, {"loss": "huber"}) is None
+    assert fitted == []
+    assert pincal.auto.fitting.sample_fit(setup, None, {}) is not None
+    assert fitted == [80]

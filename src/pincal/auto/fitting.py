@@ -101,6 +101,10 @@ def sample_fit(setup: Setup, params: Sequence[str] | None, options: dict[str, An
     outliers would make again without them. Else None."""
     if not chunked.is_large(setup.problem):
         return None
+    pull, loss = options.get("pull", DEFAULT_PULL), options.get("loss", "linear")
+    pulled = np.ones(setup.problem.n_params, dtype=bool)  # a given pull or a robust loss: no subset fit
+    if fixed_weight(setup, pulled, pull.weight, loss) is not None:
+        return None
     sampled = first_fit(chunked.sampled(setup), params, **options)
     return sampled if sampled.screening is not None else None
 
