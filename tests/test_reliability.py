@@ -21,6 +21,7 @@ from cli_run import one_error_line, run
 
 import pincal
 import pincal.data.checks
+import pincal.data.csv_table
 import pincal.data.dataset
 import pincal.inputs
 from pincal.json_text import json_text
@@ -331,6 +332,64 @@ def test_the_streamed_reader_reads_what_the_text_says(tmp_path: Path) -> None:
     (tmp_path / "bad.csv").write_text("a,b\n1,2\n3,1e999\n")
     with pytest.raises(pincal.errors.DataError, match="row 2, column b: 1e999 is not a finite"):
         pincal.data.dataset.read_table(tmp_path / "bad.csv", ["a", "b"], "a,b")
+
+
+@pytest.mark.parametrize("workers", ["1", "2"])
+def test_blocks_read_side_by_side_are_the_blocks_read_in_turn(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, workers: str
+) -> None:
+    """A file of several blocks gives the same numbers read in one process or two, and a bad cell
+    in a later block (read by the careful reader) is named by its own row."""
+    monkeypatch.setattr(pincal.data.csv_table, "_BLOCK_LINES", 64)
+    monkeypatch.setenv("PINCAL_WORKERS", workers)
+    values = np.random.default_rng(1).normal(size=(300, 3))
+    lines = ["a,b,c", *(",".join(repr(float(v)) for v in row) for row in values)]
+    (tmp_path / "t.csv").write_text("\n".join(lines) + "\n")
+    got = pincal.data.dataset.read_table(tmp_path / "t.csv", ["a", "b", "c"], "a,b,c")
+    assert np.array_equal(got, values)
+    lines[250] = "1,nan,2"
+    (tmp_path / "bad.csv").write_text("\n".join(lines) + "\n")
+    with pytest.raises(pincal.errors.DataError, match="row 250, column b: nan is not a finite"):
+        pincal.data.dataset.read_table(tmp_path / "bad.csv", ["a", "b", "c"], "a,b,c")
+
+
+def test_json_writes_a_list_of_numbers_on_one_line() -> None:
+    """Each list of numbers is one line (a report's million rows are not a million lines), nested
+    lists and objects stay indented, and the text reads back as the object."""
+    obj = {
+        "rows": list(range(1, 1001)),
+        "m": [[1.5, 2.0], [3.0, None]],
+        "s": ["a", "b"],
+        "e": [],
+        "x": {"v": (1, 2)},
+    }
+    text = json_text(obj)
+    assert json.loads(text) == {**obj, "x": {"v": [1, 2]}}
+    assert '"rows": [1, 2, 3,' in text and "    [1.5, 2.0]," in text and '"v": [1, 2]' in text
+    assert len(text.splitlines()) == 15, text
+
+
+def test_flags_are_written_as_the_whole_text_would_have_them() -> None:
+    """Searching only the lines with an ``=`` gives what one search of the whole text gives."""
+    from pincal.cli.flags import _NAMED, _flag, as_flags
+
+    rng = np.random.default_rng(0)
+    words = [
+        "folds=",
+        "degrees=True",
+        "measure=points",
+        "nested=",
+        "x.folds=",
+        "a",
+        "=",
+        " ",
+        "\n",
+        ",",
+        "\r\n",
+    ]
+    for _ in range(200):
+        text = "".join(rng.choice(words, size=12))
+        assert as_flags(text) == _NAMED.sub(_flag, text), repr(text)
 
 
 # --- Units and plausibility -----------------------------------------------------------------------

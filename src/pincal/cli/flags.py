@@ -57,12 +57,19 @@ _NAMED = re.compile(r"(?<![\w.])(" + "|".join(sorted(FLAGS, key=len, reverse=Tru
 
 
 def as_flags(text: str) -> str:
-    """``text`` with each library argument it names written as its flag (see the module docstring)."""
+    """``text`` with each library argument it names written as its flag (see the module docstring).
 
-    def flag(match: re.Match[str]) -> str:
-        name, switch, after = match.group(1), match.group(2), match.group(3)
-        if switch or not after or after in " ),;:.":
-            return FLAGS[name]
-        return f"{FLAGS[name]} "
+    Only the lines holding an ``=`` are searched: a report of a million poses is megabytes of
+    numbers, which the search of every name would read at each character."""
+    if "=" not in text:
+        return text
+    lines = text.splitlines(keepends=True)  # a line keeps its end: the search sees what follows
+    return "".join(_NAMED.sub(_flag, line) if "=" in line else line for line in lines)
 
-    return _NAMED.sub(flag, text)
+
+def _flag(match: re.Match[str]) -> str:
+    """The flag of one ``name=`` that :data:`_NAMED` found."""
+    name, switch, after = match.group(1), match.group(2), match.group(3)
+    if switch or not after or after in " ),;:.":
+        return FLAGS[name]
+    return f"{FLAGS[name]} "

@@ -25,6 +25,7 @@ import numpy as np
 from pincal import files
 from pincal.errors import DataError
 from pincal.options import QUATERNION_ORDERS
+from pincal.workers import parallel_map
 
 LOCK_TOLERANCE = 1e-3  # [rad or m]: a locked joint's column may move this much and count as still
 _QUAT = ("qw", "qx", "qy", "qz")
@@ -146,26 +147,38 @@ def read_columns(
     index = {name: k for k, name in enumerate(header)}
     cols = [index[c] for c in names]
     at = index[text_column] if text_column else -1
+    rows = [block for block in itertools.chain([first[1:]], blocks) if block]
+    if sum(map(len, rows)) > MAX_ROWS:
+        raise DataError(f"{path} has more than {MAX_ROWS:,} data rows: split it")
+    if not rows:
+        raise DataError(f"{path} has a header but no data rows")
+    fast = _fast_blocks(rows, len(header), cols) if at < 0 else [None] * len(rows)
     parsed: list[np.ndarray] = []
     texts: list[str] = []
     done = 0
-    for block in itertools.chain([first[1:]], blocks):
-        if not block:
-            continue
-        if done + len(block) > MAX_ROWS:
-            raise DataError(f"{path} has more than {MAX_ROWS:,} data rows: split it")
-        fast = _fast_block(block, len(header), cols) if at < 0 else None
-        if fast is None:
-            fast = _parse_block(path, block, len(header), cols, names, at, done, texts)
-        parsed.append(fast)
+    for block, values in zip(rows, fast):
+        if values is None:
+            values = _parse_block(path, block, len(header), cols, names, at, done, texts)
+        parsed.append(values)
         done += len(block)
-    if not done:
-        raise DataError(f"{path} has a header but no data rows")
     return np.concatenate(parsed) if len(parsed) > 1 else parsed[0], texts
 
 
 #: Lines parsed at once.
 _BLOCK_LINES = 65_536
+
+
+def _fast_blocks(blocks: list[list[str]], n_fields: int, cols: list[int]) -> list[np.ndarray | None]:
+    """:func:`_fast_block` of each block; the blocks of a large file (several) side by side in
+    worker processes (:func:`pincal.workers.parallel_map`: the same numbers).
+
+    A worker is handed its blocks as one text each (the lines hold no line break): reading the
+    parent's line objects would write to each (its reference count), and copying those pages
+    took as long as parsing them."""
+    if len(blocks) == 1:
+        return [_fast_block(blocks[0], n_fields, cols)]
+    texts = ["\n".join(block) for block in blocks]
+    return parallel_map(lambda k: _fast_block(texts[k].split("\n"), n_fields, cols), len(blocks))
 
 
 def _fast_block(block: list[str], n_fields: int, cols: list[int]) -> np.ndarray | None:
