@@ -26,6 +26,8 @@ from scipy.spatial.transform import Rotation
 
 import pincal
 import pincal.auto.fitting
+import pincal.identify.guard
+import pincal.identify.uncertainty
 from pincal.auto.screening import Linearised
 from pincal.identify import chunked
 from pincal.identify.folds import pose_folds
@@ -328,3 +330,32 @@ def test_a_given_pull_or_robust_loss_makes_no_subset_fit(monkeypatch: pytest.Mon
     assert fitted == []
     assert pincal.auto.fitting.sample_fit(setup, None, {}) is not None
     assert fitted == [80]
+
+
+def test_a_large_fit_reads_its_standard_deviations_from_the_pull_s_pass(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """On a large problem the rows are summed once, at the default pull's fit, for the pull's
+    evidence and the standard deviations: the standard deviations of the sums at the fit (the call
+    on the same poses read as a small problem) to 1e-4 (the pull moves 150 poses' fit more than a
+    million's: 2e-8 there), in one pass over the rows."""
+    ur5 = pincal.load_robot("ur5")
+    _, fit, _ = pincal.simulate(ur5, n_fit=150, n_test=0, seed=8, rot_noise=5e-4)
+    small = pincal.calibrate(ur5, fit, params="all")
+    monkeypatch.setattr(chunked, "LARGE_POSES", 100)
+    monkeypatch.setattr(chunked, "SAMPLE_POSES", 80)
+    monkeypatch.setattr(chunked, "BLOCK_POSES", 30)
+    sums: list[int] = []
+    made = pincal.identify.uncertainty.row_sums
+
+    def counted(problem: Problem, *args: object) -> object:
+        sums.append(len(problem.data))
+        return made(problem, *args)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(pincal.identify.uncertainty, "row_sums", counted)
+    monkeypatch.setattr(pincal.identify.guard, "row_sums", counted)
+    large = pincal.calibrate(ur5, fit, params="all")
+    assert sums.count(150) == 1, sums
+    assert large.prior is not None and large.prior.chosen_by == "evidence"
+    np.testing.assert_allclose(large.std, small.std, rtol=1e-4, atol=1e-15)
+    assert large.prior.weight == small.prior.weight  # type: ignore[union-attr]

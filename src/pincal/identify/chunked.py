@@ -174,12 +174,6 @@ def _stacked(jac: np.ndarray, res: np.ndarray, x_scale: np.ndarray, f_scale: flo
     return np.column_stack([rooted, soft_l1_rows(res, f_scale)])
 
 
-def gram(problem: ProblemRows, theta: np.ndarray, free: np.ndarray) -> np.ndarray:
-    """``JᵀJ`` over the free columns (P, P), summed block by block for a large problem."""
-    cols = np.arange(problem.n_params)[free]
-    return block_sums(problem, theta, cols, lambda res, jac: (jac.T @ jac,))[0]
-
-
 def normal_terms(
     problem: ProblemRows, theta: np.ndarray, free: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, float, int]:

@@ -27,6 +27,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from pincal.data.dataset import Dataset
+from pincal.identify import chunked
 from pincal.identify.calibration import Calibration
 from pincal.identify.extrapolation import check
 from pincal.identify.folds import held_out_rows, held_out_squares
@@ -37,6 +38,7 @@ from pincal.identify.measurements import Problem
 from pincal.identify.prior import choose_weight, pulled
 from pincal.identify.records import Guard, PriorChoice
 from pincal.identify.solver import Setup, assess, solve
+from pincal.identify.uncertainty import RowSums, row_sums
 from pincal.identify.validity import joint_ranges
 
 #: The fit is kept when its validation gain over the nominal model is this many standard errors.
@@ -177,6 +179,9 @@ class Protected:
             (:data:`pincal.identify.solver.PRIOR_WEIGHT`) when the weight is chosen, as its choice is made
             for Gaussian residuals and gross outliers would inflate it; else the fit.
         base: the fit at the default pull, from which the fit at the chosen weight was solved.
+        sums: on a large problem (:func:`pincal.identify.chunked.is_large`) with the plain least
+            squares, the rows' sums at ``base`` (one pass over a million poses): the pull's
+            evidence and, when the fit is kept, its standard deviations read them.
     """
 
     setup: Setup
@@ -188,6 +193,7 @@ class Protected:
     guard: Guard
     screening: tuple[Setup, np.ndarray]
     base: np.ndarray
+    sums: RowSums | None = None
 
     @property
     def free(self) -> np.ndarray:
@@ -196,7 +202,8 @@ class Protected:
 
     def assessed(self, test: Dataset | None = None) -> Calibration:
         """The calibration record (:func:`pincal.identify.solver.assess`) with the pull and the guard."""
-        cal = assess(self.setup, self.theta, self.nominal, self.identifiability, self.result, test)
+        sums = self.sums if self.guard.kept_fit else None  # at the fit, not at the nominal model
+        cal = assess(self.setup, self.theta, self.nominal, self.identifiability, self.result, test, sums)
         return replace(cal, prior=self.prior, guard=self.guard, default_pull_theta=self.base)
 
 
@@ -222,7 +229,11 @@ def protect(
             the plain least squares of the evidence's Gaussian model).
     """
     free = ident.identifiable
-    choice, chosen, theta, result = choose_weight(setup, base, free, pull.weight, loss)
+    sums = (
+        row_sums(setup.problem, base, free) if chunked.is_large(setup.problem) and loss == "linear" else None
+    )
+    terms = None if sums is None else sums.normal_terms()
+    choice, chosen, theta, result = choose_weight(setup, base, free, pull.weight, loss, terms)
     if loss != "linear":
         theta, result = solve(chosen, base, free, loss, f_scale)
     region = joint_ranges(setup.model.robot, setup.data.q)
@@ -232,4 +243,4 @@ def protect(
         verdict = replace(verdict, kept_fit=verdict.holds or pull.force_fit)
     kept = theta if verdict.kept_fit else nominal
     screening = (setup, base) if choice.chosen_by == "evidence" else (chosen, theta)
-    return Protected(chosen, kept, nominal, ident, result, choice, verdict, screening, base)
+    return Protected(chosen, kept, nominal, ident, result, choice, verdict, screening, base, sums)

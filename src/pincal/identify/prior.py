@@ -94,7 +94,12 @@ def log_evidence(setup: Setup, theta: np.ndarray, free: np.ndarray) -> float:
 
 
 def choose_weight(
-    setup: Setup, start: np.ndarray, free: np.ndarray, prior: float | str = "auto", loss: str = "linear"
+    setup: Setup,
+    start: np.ndarray,
+    free: np.ndarray,
+    prior: float | str = "auto",
+    loss: str = "linear",
+    terms: tuple[np.ndarray, np.ndarray, float, int] | None = None,
 ) -> tuple[PriorChoice, Setup, np.ndarray, OptimizeResult]:
     """The pull's weight (``prior``: ``auto`` or a weight), the setup carrying it, and the fit.
 
@@ -106,11 +111,12 @@ def choose_weight(
         prior: ``auto`` (maximum evidence over :data:`WEIGHTS`) or a weight [per natural unit].
         loss: the fit's loss: the evidence is that of Gaussian residuals, so with a robust loss
             ``auto`` keeps :data:`pincal.identify.solver.PRIOR_WEIGHT` (said in ``chosen_by``).
+        terms: :func:`pincal.identify.chunked.normal_terms` at ``start``, when already made.
     """
     fixed = fixed_weight(setup, free, prior, loss)
     if fixed is not None:
         return _fixed(setup, start, free, *fixed)
-    scores, steps = _curve(setup, start, free, WEIGHTS)
+    scores, steps = _curve(setup, start, free, WEIGHTS, terms)
     best = int(np.argmax(scores))
     chosen = replace(setup, prior_weight=WEIGHTS[best])
     stepped = start.copy()  # the chosen weight's Gauss-Newton step: the fit begins at its minimum

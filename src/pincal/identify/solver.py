@@ -41,7 +41,7 @@ from pincal.identify.measurements import Problem
 from pincal.identify.outliers import find_outliers
 from pincal.identify.registration import initial_measurement
 from pincal.identify.registrations import REGISTRATIONS
-from pincal.identify.uncertainty import posterior_std
+from pincal.identify.uncertainty import RowSums, posterior_std
 from pincal.kinematics.effects import AnyEffect
 from pincal.kinematics.mdh import make_model
 from pincal.kinematics.models import Model
@@ -291,6 +291,7 @@ def assess(
     ident: Identifiability,
     result: OptimizeResult,
     test: Dataset | None = None,
+    sums: RowSums | None = None,
 ) -> Calibration:
     """The calibration record: standard deviations and the errors before and after.
 
@@ -301,6 +302,8 @@ def assess(
         ident: the identifiable set the fit used.
         result: the solver's result (evaluations, message).
         test: held-out poses, if any.
+        sums: the rows' sums the standard deviations read (:func:`pincal.identify.uncertainty.posterior_std`),
+            when already made.
     """
     problem, mdl, ext, data = setup.problem, setup.model, setup.problem.extension, setup.data
     n_model, measurement = problem.n_model, problem.measurement
@@ -317,7 +320,7 @@ def assess(
             urdf_problem, urdf_setup.scale, "urdf", lambda: solve(urdf_setup, start, free)[0]
         )
 
-    std = posterior_std(setup.problem, setup.scale, setup.prior_weight, theta, ident.identifiable)
+    std = posterior_std(setup.problem, setup.scale, setup.prior_weight, theta, ident.identifiable, sums)
 
     def stats(meas: Measurement, th: np.ndarray, on: Dataset | None) -> Any:
         return None if on is None else evaluate(mdl, meas, th, on, ext)

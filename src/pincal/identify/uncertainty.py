@@ -5,6 +5,8 @@ from). Scales are the unknowns' natural sizes (:class:`pincal.identify.solver.Se
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from pincal.identify import chunked
@@ -23,8 +25,56 @@ STD_MEANS = (
 )
 
 
+@dataclass(frozen=True, eq=False)
+class RowSums:
+    """Sums over a problem's rows at one θ, its two kinds of rows apart (a pose's position rows,
+    then its orientation rows; position data has only the first): all the standard deviations
+    read of the rows, and the normal equations of the pull's evidence (:meth:`normal_terms`).
+
+    Attributes:
+        grams: ``JᵀJ`` of each kind (2, k, k), over the ``k`` free unknowns, unscaled.
+        grad: ``Jᵀr`` (k,).
+        squares: ``|r|²`` of each kind (2,).
+        counts: rows of each kind (2,).
+    """
+
+    grams: np.ndarray
+    grad: np.ndarray
+    squares: np.ndarray
+    counts: np.ndarray
+
+    def normal_terms(self) -> tuple[np.ndarray, np.ndarray, float, int]:
+        """``JᵀJ``, ``Jᵀr``, ``rᵀr`` and the rows, as :func:`pincal.identify.chunked.normal_terms`."""
+        return self.grams.sum(axis=0), self.grad, float(self.squares.sum()), int(self.counts.sum())
+
+
+def row_sums(problem: Problem, theta: np.ndarray, free: np.ndarray) -> RowSums:
+    """:class:`RowSums` of ``problem`` at ``theta`` over the unknowns ``free``, block by block on a
+    large problem (:func:`pincal.identify.chunked.block_sums`: one pass over its rows)."""
+    width = problem.measurement.measure.width
+
+    def by_kind(res: np.ndarray, jac: np.ndarray) -> tuple[np.ndarray, ...]:
+        turned = (np.arange(len(res)) % width) >= 3  # a block's rows start at a pose's first row
+        if not turned.any():  # position rows only
+            empty = np.zeros((jac.shape[1], jac.shape[1]))
+            grams, squares = np.stack([jac.T @ jac, empty]), np.array([float(res @ res), 0.0])
+            return grams, jac.T @ res, squares, np.array([float(len(res)), 0.0])
+        kinds = (~turned, turned)
+        grams = np.stack([jac[rows].T @ jac[rows] for rows in kinds])
+        squares = np.array([float(res[rows] @ res[rows]) for rows in kinds])
+        return grams, jac.T @ res, squares, np.array([float(np.count_nonzero(rows)) for rows in kinds])
+
+    cols = np.arange(problem.n_params)[free]
+    return RowSums(*chunked.block_sums(problem, theta, cols, by_kind))
+
+
 def posterior_std(
-    problem: Problem, scale: np.ndarray, weight: float, theta: np.ndarray, free: np.ndarray
+    problem: Problem,
+    scale: np.ndarray,
+    weight: float,
+    theta: np.ndarray,
+    free: np.ndarray,
+    sums: RowSums | None = None,
 ) -> np.ndarray:
     """Each unknown's posterior standard deviation at the fit ``theta`` (0 where not free) [m or rad].
 
@@ -32,48 +82,48 @@ def posterior_std(
     geometric corrections ``N(0, (σ/w)²)`` in natural units (``w = weight``), so the
     covariance is ``σ² (JᵀJ + w²P)⁻¹`` and ``σ²`` the evidence's profiled value
     ``(|r|² + w²|δ|²) / (n + p - k)`` (``p`` pulled of the ``k`` free unknowns). Distance rows are
-    not independent (N points make N(N-1)/2 pairs): :func:`pair_std`.
+    not independent (N points make N(N-1)/2 pairs): :func:`pair_std`. ``sums``: the rows' sums
+    (:func:`row_sums`) when already made, at ``theta`` or at a fit as close (on a large problem,
+    the pull's evidence's: a million poses' fit moves with the pull by far less than its
+    standard deviations); by default made at ``theta``.
     """
     if problem.measurement.measure.by_pairs:
         return pair_std(problem, scale, weight, theta, free)
+    sums = row_sums(problem, theta, free) if sums is None else sums
     if problem.measurement.measure.orientation:
-        return pose_std(problem, scale, weight, theta, free)
+        return pose_std(problem, scale, weight, theta, free, sums)
     std = np.zeros(problem.n_params)
     full_scale, scale = scale, scale[free]
-    gram = chunked.gram(problem, theta, free) * np.outer(scale, scale)  # issue 33
+    gram, _, squares, rows = sums.normal_terms()
+    gram = gram * np.outer(scale, scale)
     pen = np.arange(int(free.sum())) < int(free[: problem.model.n_params].sum())
     geometric = np.flatnonzero(free)[pen]
     delta = (theta[geometric] - problem.initial_theta()[geometric]) / full_scale[geometric]
-    res = problem.residuals(theta)
-    dof = len(res) + int(pen.sum()) - int(free.sum())
-    sigma2 = float(res @ res + weight**2 * delta @ delta) / max(dof, 1)
+    dof = rows + int(pen.sum()) - int(free.sum())
+    sigma2 = float(squares + weight**2 * delta @ delta) / max(dof, 1)
     cov = np.linalg.pinv(gram + weight**2 * np.diag(pen.astype(float))) * sigma2
     std[free] = np.sqrt(np.clip(np.diag(cov), 0.0, None)) * scale
     return std
 
 
 def pose_std(
-    problem: Problem, scale: np.ndarray, weight: float, theta: np.ndarray, free: np.ndarray
+    problem: Problem,
+    scale: np.ndarray,
+    weight: float,
+    theta: np.ndarray,
+    free: np.ndarray,
+    sums: RowSums | None = None,
 ) -> np.ndarray:
     """Standard deviations [m or rad] of a pose fit, whose position and orientation rows carry
     noise of different sizes: the estimator's covariance ``M Jᵀ D J M`` (``M = (JᵀJ + w²P)⁻¹``,
     ``D`` each row's noise variance), each kind's variance from its residual rows
     ``Σ r² / Σ (1 - h)`` (``h`` the hat matrix's diagonal, ``Σ h = tr(M J_kᵀ J_k)`` over the
-    kind's rows ``J_k``): ``J_kᵀ J_k`` and ``Σ r²`` of each kind are summed block by block."""
+    kind's rows ``J_k``): ``J_kᵀ J_k`` and ``Σ r²`` of each kind are summed block by block
+    (:func:`row_sums`, unless given)."""
     std = np.zeros(problem.n_params)
     scale = scale[free]
-    width = problem.measurement.measure.width
-
-    def by_kind(res: np.ndarray, jac: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        jac = jac * scale
-        turned = (np.arange(len(res)) % width) >= 3  # a block's rows start at a pose's first row
-        kinds = (turned, ~turned)
-        grams = np.stack([jac[rows].T @ jac[rows] for rows in kinds])
-        squares = np.array([float(res[rows] @ res[rows]) for rows in kinds])
-        return grams, squares, np.array([float(np.count_nonzero(rows)) for rows in kinds])
-
-    cols = np.arange(problem.n_params)[free]
-    grams, squares, counts = chunked.block_sums(problem, theta, cols, by_kind)
+    sums = row_sums(problem, theta, free) if sums is None else sums
+    grams, squares, counts = sums.grams * np.outer(scale, scale), sums.squares, sums.counts
     pen = np.arange(int(free.sum())) < int(free[: problem.model.n_params].sum())
     inverse = np.linalg.pinv(grams.sum(axis=0) + weight**2 * np.diag(pen.astype(float)))
     left = counts - np.einsum("ij,kji->k", inverse, grams)  # Σ (1 - h) of each kind
