@@ -33,7 +33,7 @@ from pincal.identify import chunked
 from pincal.identify.folds import pose_folds
 from pincal.identify.measurements import Problem
 from pincal.identify.solver import identifiable_set, set_up, solve
-from pincal.identify.uncertainty import pose_std
+from pincal.identify.uncertainty import pose_std, row_sums
 from pincal.kinematics import gravity
 from pincal.kinematics.effects import Extension, combined
 from pincal.simulation.truth import hide_effect
@@ -151,7 +151,9 @@ def test_pose_std_by_blocks_is_the_std_by_rows(
     _tiny_blocks(monkeypatch)
     problem = base.problem(data)
     assert chunked.is_large(problem) and want[free].min() > 0
-    assert np.allclose(pose_std(problem, scale, 0.3, theta, free), want, rtol=RTOL, atol=0)
+    assert np.allclose(
+        pose_std(problem, scale, 0.3, free, row_sums(problem, theta, free)), want, rtol=RTOL, atol=0
+    )
 
 
 def _flange_poses(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:

@@ -564,8 +564,10 @@ def test_a_thousand_fixed_links_do_not_count_as_joints(tmp_path: Path) -> None:
 
 def test_the_block_by_block_fit_is_the_dense_fit(monkeypatch: pytest.MonkeyPatch) -> None:
     """With the thresholds of :mod:`pincal.identify.chunked` lowered to a few hundred poses, the fit, its
-    standard deviations and its errors are those of the dense solver (to rounding); found on a
-    random subset, the identifiable set is the same and the fit's error within 1 %."""
+    standard deviations and its errors are those of the dense solver (to rounding; the standard
+    deviations to 1e-5, as a large problem reads them at the default pull's fit, which 400 poses
+    move from the chosen pull's by 4e-6 relative, a million by 2e-8); found on a random subset, the
+    identifiable set is the same and the fit's error within 1 %."""
     import pincal.identify.chunked as chunked
 
     ur5 = pincal.load_robot("ur5")
@@ -577,7 +579,7 @@ def test_the_block_by_block_fit_is_the_dense_fit(monkeypatch: pytest.MonkeyPatch
     blocks = pincal.calibrate(ur5, data, params="all", outliers=6.0)
     assert np.array_equal(dense.identifiability.identifiable, blocks.identifiability.identifiable)
     assert np.allclose(blocks.theta, dense.theta, rtol=0, atol=1e-9)
-    assert np.allclose(blocks.std, dense.std, rtol=1e-6, atol=1e-12)
+    assert np.allclose(blocks.std, dense.std, rtol=1e-5, atol=1e-12)
     assert blocks.train_after.rms_mm == pytest.approx(dense.train_after.rms_mm, rel=1e-9)
     monkeypatch.setattr(chunked, "SAMPLE_POSES", 200)
     sampled = pincal.calibrate(ur5, data, params="all", outliers=6.0)

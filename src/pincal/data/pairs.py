@@ -6,6 +6,8 @@ from itertools import combinations
 
 import numpy as np
 
+from pincal.errors import DataError
+
 
 def all_pairs(n: int) -> np.ndarray:
     """Every pair ``(i, j)``, ``i < j``, of ``n`` poses: (n(n-1)/2, 2)."""
@@ -25,3 +27,13 @@ def gao_pairs(n: int) -> np.ndarray:
         pairs.add((4 * i - 2, 4 * i))
         pairs.add((4 * i - 3, 4 * i - 1))
     return np.array(sorted((a - 1, b - 1) for a, b in pairs if 1 <= a <= n and 1 <= b <= n and a != b))
+
+
+def chosen_pairs(pairs: str | np.ndarray, n: int) -> np.ndarray | None:
+    """The pairs of ``n`` poses a distance fit uses: ``"all"`` (None: every pair), ``"gao"``
+    (:func:`gao_pairs`) or the pairs given (k, 2)."""
+    if not isinstance(pairs, str):
+        return np.asarray(pairs, dtype=int)
+    if pairs not in ("all", "gao"):
+        raise DataError(f"unknown pairing {pairs!r}: use all or gao")
+    return gao_pairs(n) if pairs == "gao" else None

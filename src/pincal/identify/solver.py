@@ -27,7 +27,7 @@ import numpy as np
 import pinocchio as pin
 
 from pincal.data.dataset import Dataset
-from pincal.data.pairs import gao_pairs
+from pincal.data.pairs import chosen_pairs
 from pincal.errors import DataError, IdentifiabilityError
 from pincal.identify import chunked
 from pincal.identify.calibration import Calibration
@@ -100,14 +100,6 @@ class Setup:
         return self.problem.data
 
 
-def _pairs(pairs: str | np.ndarray, n: int) -> np.ndarray | None:
-    if not isinstance(pairs, str):
-        return np.asarray(pairs, dtype=int)
-    if pairs not in ("all", "gao"):
-        raise DataError(f"unknown pairing {pairs!r}: use all or gao")
-    return gao_pairs(n) if pairs == "gao" else None
-
-
 def set_up(
     robot: Robot,
     data: Dataset,
@@ -147,7 +139,7 @@ def set_up(
         tool=tool_se3,
         fit_tool=tool is None,
         rotation_weight=rotation_weight,
-        pairs=_pairs(pairs, len(data)),
+        pairs=chosen_pairs(pairs, len(data)),
         points=data.point_names if get_kind(kind).fixed_points else (),
         point_distances=placed_distances(data.point_names, tuple(point_distances)),
         **marker_setup(data, tool, robot),

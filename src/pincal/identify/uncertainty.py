@@ -91,7 +91,7 @@ def posterior_std(
         return pair_std(problem, scale, weight, theta, free)
     sums = row_sums(problem, theta, free) if sums is None else sums
     if problem.measurement.measure.orientation:
-        return pose_std(problem, scale, weight, theta, free, sums)
+        return pose_std(problem, scale, weight, free, sums)
     std = np.zeros(problem.n_params)
     full_scale, scale = scale, scale[free]
     gram, _, squares, rows = sums.normal_terms()
@@ -107,22 +107,16 @@ def posterior_std(
 
 
 def pose_std(
-    problem: Problem,
-    scale: np.ndarray,
-    weight: float,
-    theta: np.ndarray,
-    free: np.ndarray,
-    sums: RowSums | None = None,
+    problem: Problem, scale: np.ndarray, weight: float, free: np.ndarray, sums: RowSums
 ) -> np.ndarray:
     """Standard deviations [m or rad] of a pose fit, whose position and orientation rows carry
     noise of different sizes: the estimator's covariance ``M Jᵀ D J M`` (``M = (JᵀJ + w²P)⁻¹``,
     ``D`` each row's noise variance), each kind's variance from its residual rows
     ``Σ r² / Σ (1 - h)`` (``h`` the hat matrix's diagonal, ``Σ h = tr(M J_kᵀ J_k)`` over the
-    kind's rows ``J_k``): ``J_kᵀ J_k`` and ``Σ r²`` of each kind are summed block by block
-    (:func:`row_sums`, unless given)."""
+    kind's rows ``J_k``): ``J_kᵀ J_k`` and ``Σ r²`` of each kind, summed block by block
+    (:func:`row_sums`)."""
     std = np.zeros(problem.n_params)
     scale = scale[free]
-    sums = row_sums(problem, theta, free) if sums is None else sums
     grams, squares, counts = sums.grams * np.outer(scale, scale), sums.squares, sums.counts
     pen = np.arange(int(free.sum())) < int(free[: problem.model.n_params].sum())
     inverse = np.linalg.pinv(grams.sum(axis=0) + weight**2 * np.diag(pen.astype(float)))
