@@ -486,3 +486,26 @@ def test_twists_mrres5(capsys: pytest.CaptureFixture[str]) -> None:
     match = re.search(r"max error ([0-9.eE+-]+)", run.out)
     assert match is not None
     assert float(match.group(1)) < 1e-9
+
+
+def test_the_verdict_warns_when_the_nested_estimate_loses_to_the_urdf() -> None:
+    """A nested cross-validation worse than the URDF as is, or than the URDF's geometry with the
+    registration and tool fitted (the tool unknown: the URDF as is far off), is a warning on the
+    verdict line; one better than both is not."""
+    from types import SimpleNamespace
+
+    from pincal.cli.calibrate import NOMINAL_FITTED, verdict_warnings
+
+    def with_nested(urdf: float, before: float, after: float) -> SimpleNamespace:
+        stats = {
+            k: SimpleNamespace(rms_mm=v) for k, v in (("urdf", urdf), ("before", before), ("after", after))
+        }
+        return SimpleNamespace(choice=SimpleNamespace(nested=SimpleNamespace(**stats)))
+
+    result = None
+    (warning,) = verdict_warnings(with_nested(65.0, 3.85, 3.98), result)  # type: ignore[arg-type]
+    assert NOMINAL_FITTED in warning and "3.98 against 3.85 mm" in warning
+    (warning,) = verdict_warnings(with_nested(2.0, 3.85, 3.0), result)  # type: ignore[arg-type]
+    assert "the URDF as is (3 against 2 mm)" in warning
+    assert verdict_warnings(with_nested(65.0, 3.85, 1.25), result) == ()  # type: ignore[arg-type]
+    assert verdict_warnings(SimpleNamespace(choice=None), result) == ()  # type: ignore[arg-type]
