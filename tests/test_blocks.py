@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -61,6 +62,25 @@ def _tiny_blocks(monkeypatch: pytest.MonkeyPatch) -> None:
         return whole(problem, theta, cols)
 
     monkeypatch.setattr(chunked, "evaluate", residuals_only)
+
+
+def _poses_per_call(
+    monkeypatch: pytest.MonkeyPatch, where: list[tuple[object, str]], poses: Callable[[Any], int]
+) -> list[int]:
+    """The number of poses (``poses`` of the first argument) of each call of the function named
+    in every ``(module, name)`` of ``where`` (one function, imported under each), recorded as
+    the calls are made."""
+    seen: list[int] = []
+    module, name = where[0]
+    original = getattr(module, name)
+
+    def counted(first: Any, *args: Any, **kwargs: Any) -> Any:
+        seen.append(poses(first))
+        return original(first, *args, **kwargs)
+
+    for module, name in where:
+        monkeypatch.setattr(module, name, counted)
+    return seen
 
 
 def _fitted(robot: pincal.Robot, rot_noise: float) -> tuple[pincal.Calibration, pincal.Dataset]:
@@ -242,14 +262,7 @@ def test_large_data_is_screened_before_any_fit_of_every_pose(monkeypatch: pytest
     q = ur5.random_configurations(150, np.random.default_rng(3), 0.05)
     data = pincal.random_truth(ur5, seed=4).measure(q, 2e-5, seed=5)
     data = replace(data, points=data.points + np.where(np.arange(150) == 17, 3e-3, 0.0)[:, None])
-    fitted: list[int] = []
-    solve_rows = pincal.auto.fitting.solve
-
-    def counted(setup: object, *args: object, **kwargs: object) -> object:
-        fitted.append(len(setup.problem.data))  # type: ignore[attr-defined]
-        return solve_rows(setup, *args, **kwargs)  # type: ignore[arg-type]
-
-    monkeypatch.setattr(pincal.auto.fitting, "solve", counted)
+    fitted = _poses_per_call(monkeypatch, [(pincal.auto.fitting, "solve")], lambda on: len(on.problem.data))
     screened = pincal.calibrate(ur5, data, params="all", outliers=6.0)
     assert [row for row, _ in screened.excluded] == [18]
     assert 150 not in fitted and 149 in fitted, fitted
@@ -318,14 +331,9 @@ def test_a_given_pull_or_robust_loss_makes_no_subset_fit(monkeypatch: pytest.Mon
     ur5 = pincal.load_robot("ur5")
     q = ur5.random_configurations(150, np.random.default_rng(3), 0.05)
     setup = set_up(ur5, pincal.random_truth(ur5, seed=4).measure(q, 2e-5, seed=5), "placements", "position")
-    fitted: list[int] = []
-    first = pincal.auto.fitting.first_fit
-
-    def counted(on: object, *args: object, **kwargs: object) -> object:
-        fitted.append(len(on.problem.data))  # type: ignore[attr-defined]
-        return first(on, *args, **kwargs)  # type: ignore[arg-type]
-
-    monkeypatch.setattr(pincal.auto.fitting, "first_fit", counted)
+    fitted = _poses_per_call(
+        monkeypatch, [(pincal.auto.fitting, "first_fit")], lambda on: len(on.problem.data)
+    )
     given = {"pull": pincal.identify.guard.Pull(weight=0.1)}
     assert pincal.auto.fitting.sample_fit(setup, None, given) is None
     assert pincal.auto.fitting.sample_fit(setup, None, {"loss": "huber"}) is None
@@ -347,15 +355,8 @@ def test_a_large_fit_reads_its_standard_deviations_from_the_pull_s_pass(
     monkeypatch.setattr(chunked, "LARGE_POSES", 100)
     monkeypatch.setattr(chunked, "SAMPLE_POSES", 80)
     monkeypatch.setattr(chunked, "BLOCK_POSES", 30)
-    sums: list[int] = []
-    made = pincal.identify.uncertainty.row_sums
-
-    def counted(problem: Problem, *args: object) -> object:
-        sums.append(len(problem.data))
-        return made(problem, *args)  # type: ignore[arg-type]
-
-    monkeypatch.setattr(pincal.identify.uncertainty, "row_sums", counted)
-    monkeypatch.setattr(pincal.identify.guard, "row_sums", counted)
+    where = [(pincal.identify.uncertainty, "row_sums"), (pincal.identify.guard, "row_sums")]
+    sums = _poses_per_call(monkeypatch, where, lambda problem: len(problem.data))
     large = pincal.calibrate(ur5, fit, params="all")
     assert sums.count(150) == 1, sums
     assert large.prior is not None and large.prior.chosen_by == "evidence"
