@@ -22,6 +22,7 @@ import pincal
 from pincal.data.dataset import Dataset
 from pincal.identify.guard import Z_MIN, loo_squared_errors
 from pincal.identify.guard_null import design, null_threshold, press
+from pincal.identify.selection_walk import draw_batches, walks
 from pincal.identify.solver import register, set_up, solve
 from pincal.simulation.truth import random_truth, simulate
 
@@ -133,3 +134,34 @@ def test_the_null_threshold_is_a_quantile_of_draws() -> None:
         assert a is not None and a == b and a.rank == 2 and a.alpha <= 0.023
         thresholds.append(a.z)
     assert thresholds[0] > thresholds[1]
+
+
+@pytest.mark.parametrize("measure", ["position", "distance"])
+def test_walking_draws_together_gives_each_draws_own_walk(measure: str) -> None:
+    """The null's draws are walked in batches (:func:`~pincal.identify.selection_walk.walks`):
+    each draw's path, stop and chosen columns are those of its walk alone, its scores to 1e-12."""
+    fit, _ = _session(4, 20, exact=False)
+    setup = set_up(_ur5(), fit, measure=measure)
+    nominal = register(setup)
+    plan = design(setup, nominal, folds=5 if measure == "position" else None)
+    rng = np.random.default_rng(0)
+    draws = rng.normal(0.0, NOISE, (len(plan.jac), 7))
+    together = walks(plan, draws, max_params=None if measure == "position" else 6)
+    for k, (path, complete, added) in enumerate(together):
+        alone = walks(plan, draws[:, [k]], max_params=None if measure == "position" else 6)[0]
+        assert (complete, added) == alone[1:] and [s.added for s in path] == [s.added for s in alone[0]]
+        ours, theirs = ([s.cv_rms_mm for s in p] for p in (path, alone[0]))
+        assert np.allclose(ours, theirs, rtol=1e-12, atol=0.0)
+    rank = np.linalg.matrix_rank(plan.project(plan.jac[:, plan.candidates]), tol=plan.tol)
+    assert complete == (measure == "position") and len(added) == (rank if complete else 6)
+
+
+def test_draw_batches_cover_every_draw_once_on_two_cores() -> None:
+    """Batches split the draws in order, nearly equal, and at least two (one per core)."""
+    fit, _ = _session(4, 20, exact=False)
+    setup = set_up(_ur5(), fit)
+    plan = design(setup, register(setup))
+    for draws in (2, 7, 20, 43):
+        batches = draw_batches(plan, draws)
+        assert np.array_equal(np.concatenate(batches), np.arange(draws)) and len(batches) >= 2
+        assert max(map(len, batches)) - min(map(len, batches)) <= 1

@@ -36,7 +36,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from pincal.identify.folds import held_out_squares
-from pincal.identify.forward_selection import KEEP_ALL, MIN_GAIN, Design, choose_step, design, walk
+from pincal.identify.forward_selection import KEEP_ALL, MIN_GAIN, choose_step
+from pincal.identify.selection_walk import Design, design, draw_batches, walks
 from pincal.identify.solver import Setup
 from pincal.workers import parallel_map
 
@@ -107,13 +108,18 @@ def null_threshold(
     res = plan.project(setup.linearised(nominal)[0])
     sigma = float(np.sqrt(res @ res / free))
 
-    if chosen is None:  # each draw its own seed: the same answer on one core or two
-        zs = np.sort(parallel_map(functools.partial(_seeded_z, setup, plan, sigma, seed), draws))
+    eps = np.column_stack(
+        [noise_rows(setup, len(plan.jac), sigma, np.random.default_rng([seed, k])) for k in range(draws)]
+    )
+    if chosen is None:  # the walks in fixed batches: the same answer on one core or two
+        batches = draw_batches(plan, draws)
+        zs = np.sort(
+            np.concatenate(
+                parallel_map(functools.partial(_selected_zs, setup, plan, eps, batches), len(batches))
+            )
+        )
     else:  # the same columns in every draw: their leave-one-out algebra once, for all draws
-        eps = [
-            noise_rows(setup, len(plan.jac), sigma, np.random.default_rng([seed, k])) for k in range(draws)
-        ]
-        zs = np.sort(_zs(setup, plan, chosen, np.column_stack(eps)))
+        zs = np.sort(_zs(setup, plan, chosen, eps))
     rank = max(1, int(ALPHA * (draws + 1)))
     return NullThreshold(float(zs[-rank]), draws, rank, sigma * 1e3)
 
@@ -128,15 +134,16 @@ def noise_rows(setup: Setup, n_rows: int, sigma: float, rng: np.random.Generator
     return problem.measurement.measure.noise_rows(problem, n_rows, eps[:, :, None])[:, 0]
 
 
-def _seeded_z(setup: Setup, plan: Design, sigma: float, seed: int, k: int) -> float:
-    """The guard's ``z`` on draw ``k`` of pure noise (seeded by ``seed`` and ``k``)."""
-    return _null_z(setup, plan, sigma, np.random.default_rng([seed, k]))
-
-
-def _null_z(setup: Setup, plan: Design, sigma: float, rng: np.random.Generator) -> float:
-    """The guard's ``z`` of the set the selection chooses on one draw of pure noise."""
-    eps = noise_rows(setup, len(plan.jac), sigma, rng)
-    return float(_zs(setup, plan, _selected(plan, eps), eps[:, None])[0])
+def _selected_zs(
+    setup: Setup, plan: Design, eps: np.ndarray, batches: list[np.ndarray], k: int
+) -> np.ndarray:
+    """The guard's ``z`` of the set the selection chooses on each draw of pure noise of batch ``k``
+    (the columns ``batches[k]`` of ``eps``, walked together)."""
+    draws = eps[:, batches[k]]
+    chosen = (
+        added[: choose_step(path, done, MIN_GAIN, KEEP_ALL)] for path, done, added in walks(plan, draws)
+    )
+    return np.array([_zs(setup, plan, cols, draws[:, [j]])[0] for j, cols in enumerate(chosen)])
 
 
 def _zs(setup: Setup, plan: Design, chosen: list[int], eps: np.ndarray) -> np.ndarray:
@@ -145,12 +152,6 @@ def _zs(setup: Setup, plan: Design, chosen: list[int], eps: np.ndarray) -> np.nd
     fit = press(plan.jac[:, chosen], plan.basis, setup.prior_weight, eps, plan.groups)
     base = press(plan.jac[:, :0], plan.basis, 0.0, eps, plan.groups)
     return np.array([z_of(base[:, k] - fit[:, k]) for k in range(eps.shape[1])])
-
-
-def _selected(plan: Design, eps: np.ndarray) -> list[int]:
-    """The columns the forward selection chooses for the residual ``eps``."""
-    path, complete, added = walk(plan, eps)
-    return added[: choose_step(path, complete, MIN_GAIN, KEEP_ALL)]
 
 
 def press(
