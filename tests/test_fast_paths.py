@@ -321,6 +321,8 @@ def test_workers_from_the_environment(monkeypatch: pytest.MonkeyPatch) -> None:
 def test_nested_cross_validation_in_two_processes_is_the_serial_one(
     get_robot, monkeypatch: pytest.MonkeyPatch
 ) -> None:
+    """Four of the five folds in the two workers, the fifth here with the workers for its own
+    diagnosis: bit-for-bit the serial loop."""
     robot = get_robot("ur5")
     _, fit, _ = pincal.simulate(robot, n_fit=40, n_test=0, seed=3)
     runs = {}

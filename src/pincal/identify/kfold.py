@@ -28,7 +28,7 @@ from pincal.identify.folds import pose_folds
 from pincal.identify.measurements import Problem
 from pincal.kinematics.models import Model
 from pincal.robot.robots import Robot
-from pincal.workers import limited, parallel_map
+from pincal.workers import limited, parallel_map, worker_count
 
 #: A fit: :func:`pincal.calibrate`'s signature, ``fit(robot, data, model, measure, **options)``.
 Fit = Callable[..., Calibration]
@@ -96,6 +96,10 @@ def cross_validate_with(
 ) -> CrossValidation:
     """Calibrate with ``fit`` on K-1 folds, judge on the held-out fold, pool the held-out errors.
 
+    The folds run in the worker processes, as many at a time as there are workers; the folds left
+    over (the fifth of five on two cores) run here, each with the workers for its own parallel work
+    (a whole calibration's diagnosis), so no core waits while one fold runs alone.
+
     Args:
         fit: the calibration, called as ``fit(robot, data, model, measure, **options)``.
         robot: the robot.
@@ -114,7 +118,13 @@ def cross_validate_with(
         if progress is not None:
             progress(k + 1, folds, f"cross-validation, fold {k + 1} of {folds}")
 
-    return runs.pooled(parallel_map(runs.fold, len(runs.parts), done=done))  # the folds are independent
+    n_folds, workers = len(runs.parts), worker_count()
+    together = n_folds - n_folds % workers if n_folds > workers else n_folds
+    answers = parallel_map(runs.fold, together, done=done)  # the folds are independent
+    for k in range(together, n_folds):  # the last of 5 folds on 2 cores: here, with both cores inside
+        answers.append(runs.fold(k))
+        done(k)
+    return runs.pooled(answers)
 
 
 @dataclass(frozen=True, eq=False)
