@@ -17,6 +17,7 @@ import pincal
 from pincal.data.dataset import Dataset
 from pincal.identify.extrapolation import Posterior, expected_gain
 from pincal.identify.measurements import Problem
+from pincal.identify.prior import WEIGHTS
 from pincal.identify.solver import set_up
 
 NOISE = 5e-5  # per axis [m]
@@ -27,6 +28,9 @@ PASSING_SEEDS = (100, 143, 193)
 #: Seeds whose fit of the distances between 30 poses over the whole range of an exact URDF passes
 #: the guard and predicts new poses' distances worse than the nominal model.
 DISTANCE_SEEDS = (10, 13)
+#: A seed whose distance fit of an exact URDF (7.8 % worse on new poses) passed the guard and the
+#: check while the check's posterior stopped at the top of the pull's grid.
+BEYOND_GRID_SEED = 25
 WORSE = 1.05
 
 
@@ -81,6 +85,19 @@ def test_distance_fit_worse_across_the_limits_is_refused(seed: int) -> None:
     assert default.guard.extrapolation is not None and not default.guard.extrapolation.holds
     assert not default.guard.kept_fit
     np.testing.assert_array_equal(default.theta, default.nominal_theta)
+
+
+def test_the_posterior_takes_its_weight_beyond_the_pulls_grid() -> None:
+    """The data of an exact URDF give the strongest pull of the grid the largest evidence; the
+    check's posterior takes the largest evidence beyond it, where its mean is the nominal model,
+    and refuses the fit of the noise that a posterior held at the grid's top passed."""
+    default, forced = _calibrations(BEYOND_GRID_SEED, True, 0.05, "distance")
+    assert forced.guard is not None and forced.guard.reliable
+    assert forced.test_after is not None and forced.test_before is not None
+    assert forced.test_after.rms_mm > WORSE * forced.test_before.rms_mm
+    beyond = default.guard.extrapolation if default.guard is not None else None
+    assert beyond is not None and beyond.weight > WEIGHTS[-1] and not beyond.holds
+    assert not default.guard.kept_fit
 
 
 @pytest.mark.parametrize("measure", ["distance", "pose"])
