@@ -308,6 +308,13 @@ def bench_cv(
             )
         )
         details[label] = {"held_out": held.to_dict(), "train": cal.train_after.to_dict()}
+        guard = cal.guard
+        if guard is not None and not guard.kept_fit and options["params"] != []:  # a fit it could refuse
+            out.append(
+                f"  {label}: the guard refuses the fit on all {len(data)} poses (z = {guard.z:.2f} "
+                f"against the threshold {guard.z_min:.2f}) and exports the nominal geometry "
+                f"({cal.train_after.rms_mm:.2f} mm fitted)"
+            )
         if label.endswith("auto *"):
             choice_notes(cal, data, out, label)
     diag_folds = 7 if measure == "distance" else 5
