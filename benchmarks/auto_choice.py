@@ -36,6 +36,9 @@ Usage::
 
     python benchmarks/auto_choice.py [--seeds 20] [--fit-seeds 10] [--repeat 7]
         [--robots ur5 panda] [--parts 1 2 3 4] [--effect-seeds 5] [--quick] [--json FILE]
+        [--markdown FILE]
+
+``--markdown`` also writes what it prints as a page of ``docs/results/generated``.
 
 ``--quick`` runs 3 seeds in parts 1, 2 and 4 and 3 timed repeats.
 """
@@ -50,13 +53,17 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import argparse  # noqa: E402
+import contextlib  # noqa: E402
+import io  # noqa: E402
 import json  # noqa: E402
 import statistics  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
+from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
+from markdown_page import command_line, text_block, write_page  # noqa: E402
 
 import pincal  # noqa: E402
 from pincal.auto.choice import choice_of  # noqa: E402
@@ -306,11 +313,36 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--effect-seeds", type=int, default=5, help="seeds per robot and effect of part 4")
     parser.add_argument("--quick", action="store_true", help="3 seeds in parts 1 and 2, 3 timed runs")
     parser.add_argument("--json", metavar="FILE", help="write the numbers to FILE")
+    parser.add_argument("--markdown", metavar="FILE", help="also write what is printed as a page")
     args = parser.parse_args(argv)
     if args.quick:
         args.seeds, args.fit_seeds, args.repeat = min(args.seeds, 3), min(args.fit_seeds, 3), 3
         args.effect_seeds = min(args.effect_seeds, 3)
+    printed = _Tee(sys.stdout)
+    with contextlib.redirect_stdout(printed):
+        ok = run_parts(args)
+    if args.markdown:
+        given = sys.argv[1:] if argv is None else argv
+        write_page(
+            Path(args.markdown), command_line("auto_choice.py", given, {}), [text_block(printed.getvalue())]
+        )
+    return 0 if ok else 1
 
+
+class _Tee(io.StringIO):
+    """Standard output kept as well as printed."""
+
+    def __init__(self, out: Any) -> None:
+        super().__init__()
+        self.out = out
+
+    def write(self, text: str) -> int:
+        self.out.write(text)
+        return super().write(text)
+
+
+def run_parts(args: argparse.Namespace) -> bool:
+    """Run and print the parts ``args`` asks for; whether every acceptance holds."""
     start = time.perf_counter()
     out: dict[str, Any] = {"robots": args.robots, "noise_m": NOISE}
     ok = True
@@ -337,7 +369,7 @@ def main(argv: list[str] | None = None) -> int:
         with open(args.json, "w", encoding="utf-8") as fh:
             json.dump(out, fh, indent=2)
             fh.write("\n")
-    return 0 if ok else 1
+    return bool(ok)
 
 
 if __name__ == "__main__":
