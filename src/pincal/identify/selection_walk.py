@@ -8,9 +8,10 @@ a fit on the other rows leaves ``(I - H_gg)⁻¹ e_g`` (PRESS); adding a column 
 (scores within :data:`TIE`) goes to the first in the model's order.
 
 :func:`walks` takes ``D`` residuals (the guard's null draws of pure noise) through the same
-algebra at once: each draw keeps its own basis and leave-one-out inverses, stacked along a first
-axis, so NumPy's work per step is one call for every draw instead of one per draw (the walk's
-cost on a few dozen poses is mostly the calls). :func:`walk` is the walk of one residual.
+algebra at once: each draw keeps its own projected candidates, residual and leave-one-out
+inverses, stacked along a first axis, so NumPy's work per step is one call for every draw
+instead of one per draw (the walk's cost on a few dozen poses is mostly the calls). :func:`walk`
+is the walk of one residual.
 """
 
 from __future__ import annotations
@@ -183,17 +184,25 @@ def walk(plan: Design, res: np.ndarray, max_params: int | None = None) -> Walk:
 
 
 def walks(plan: Design, res: np.ndarray, max_params: int | None = None) -> list[Walk]:
-    """:func:`walk` of each column of ``res`` (R, D), in the batches of :func:`draw_batches`."""
-    batches = draw_batches(plan, res.shape[1])
-    return [w for batch in batches for w in _Walks(plan, res[:, batch]).run(max_params)]
+    """:func:`walk` of each column of ``res`` (R, D), walked together in stacks of at most
+    :func:`batch_size` draws."""
+    size = batch_size(plan)
+    return [
+        w for a in range(0, res.shape[1], size) for w in _Walks(plan, res[:, a : a + size]).run(max_params)
+    ]
+
+
+def batch_size(plan: Design) -> int:
+    """How many draws are walked together: their leave-one-out algebra does at most about
+    :data:`BATCH_WORK` per step (one draw at least)."""
+    per_draw = sum(len(g) ** 2 for g in plan.groups) * max(1, len(plan.candidates))
+    return max(1, BATCH_WORK // per_draw)
 
 
 def draw_batches(plan: Design, draws: int) -> list[np.ndarray]:
     """The draws ``0 .. draws - 1`` in at least two batches (for two cores) of nearly equal size,
-    each doing at most about :data:`BATCH_WORK` per step, walked together."""
-    per_draw = sum(len(g) ** 2 for g in plan.groups) * max(1, len(plan.candidates))
-    size = max(1, BATCH_WORK // per_draw)
-    return np.array_split(np.arange(draws), min(draws, max(2, -(-draws // size))))
+    none larger than :func:`batch_size`: each batch is one stack of :func:`walks`."""
+    return np.array_split(np.arange(draws), min(draws, max(2, -(-draws // batch_size(plan)))))
 
 
 class _Walks:
