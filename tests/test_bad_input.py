@@ -213,6 +213,17 @@ DATA_CASES: dict[str, tuple[Edit | None, tuple[str, ...], tuple[str, ...]]] = {
     "extra-joint-like-column": (add_column("wrist_4_joint", "0.1"), (), ("wrist_4_joint",)),
     "extra-numbered-joint-column": (add_column("joint7", "0.0"), (), ("joint7",)),
     "missing-x-column": (drop_column("x"), (), ("missing column", "x")),
+    "capital-x-column": (rename_column("x", "X"), (), ("missing column", "'X' for x?")),
+    "x-column-named-with-its-unit": (
+        rename_column("y", "y [mm]"),
+        (),
+        ("'y [mm]' for y?", "--units mm"),
+    ),
+    "joint-column-named-with-its-unit": (
+        rename_column("elbow_joint", "elbow_joint_deg"),
+        (),
+        ("'elbow_joint_deg' for elbow_joint?", "--degrees"),
+    ),
     "non-numeric-cell": (set_cell(3, "elbow_joint", "abc"), (), ("row 3", "elbow_joint", "abc")),
     "empty-cell": (set_cell(4, "wrist_1_joint", ""), (), ("row 4", "wrist_1_joint")),
     "nan-cell": (set_cell(5, "y", "nan"), (), ("row 5", "y", "nan")),

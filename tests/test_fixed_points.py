@@ -419,8 +419,12 @@ def test_read_socket_folder(tmp_path: Path) -> None:
 
 def test_read_socket_folder_refuses_bad_folders(tmp_path: Path) -> None:
     names = _robot("ur5").joint_names
-    with pytest.raises(DataError, match="no hole_"):
+    with pytest.raises(DataError, match="without hole_<name>.csv"):
         read_socket_folder(tmp_path, names)
+    _write(tmp_path / "poses.csv", "a,b\n1,2\n")
+    with pytest.raises(DataError, match=r"give the measurement CSV file \(it holds poses.csv\)"):
+        read_socket_folder(tmp_path, names)
+    (tmp_path / "poses.csv").unlink()
     _write(tmp_path / "hole_0.csv", "0.1,0.2,0.3,0.4,0.5\n")
     with pytest.raises(DataError, match="6 finite joint values"):
         read_socket_folder(tmp_path, names)

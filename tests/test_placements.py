@@ -113,7 +113,7 @@ def test_mukca_tip_pose_files_are_not_read_as_sockets(tmp_path: Path) -> None:
     only_poses = tmp_path / "poses"
     only_poses.mkdir()
     np.savetxt(only_poses / "hole_0_pose.csv", np.zeros((3, robot.n_joints)), delimiter=",")
-    with pytest.raises(pincal.DataError, match="no hole_<name>.csv"):
+    with pytest.raises(pincal.DataError, match="without hole_<name>.csv"):
         read_socket_folder(only_poses, robot.joint_names)
 
 

@@ -22,6 +22,7 @@ from collections.abc import Iterable, Sequence
 
 import numpy as np
 
+from pincal.data.csv_table import misspelt
 from pincal.data.dataset import Dataset
 from pincal.errors import DataError
 from pincal.robot.robots import Robot
@@ -58,14 +59,10 @@ def check_columns(header: Sequence[str], robot: Robot, locked: Iterable[str] = (
     missing = [j for j in robot.joint_names if j not in columns and j not in set(locked)]
     unknown = [c for c in columns if c not in known and _looks_like_joint(c, known)]
     if missing:
-        hints = [
-            f"'{match[0]}' for {j}?"
-            for j in missing
-            if (match := difflib.get_close_matches(j, unknown or columns, n=1, cutoff=0.6))
-        ]
+        hints = misspelt(missing, unknown or columns)
         raise DataError(
             f"no column for chain joint(s) {', '.join(missing)} (the header has {', '.join(columns)})"
-            + (f"; misspelt: {' '.join(hints)}" if hints else "")
+            + hints
             + f": name a column after each joint between the base and {robot.tip}, or pass "
             f"locked={','.join(missing)} to hold them at their neutral value"
         )

@@ -13,8 +13,10 @@ Bounds (stated in ``docs/reliability.md``): at most :data:`MAX_COLUMNS` columns 
 from __future__ import annotations
 
 import csv
+import difflib
 import itertools
 import math
+import re
 from array import array
 from collections import Counter
 from collections.abc import Iterator, Sequence
@@ -143,7 +145,8 @@ def read_columns(
     names = [(rename or {}).get(c, c) for c in columns]
     missing = [c for c in [*names, *([text_column] if text_column else [])] if c not in header]
     if missing:
-        raise DataError(f"{path}: missing column(s) {', '.join(missing)}; the header must name {what}")
+        hints = misspelt(missing, [c for c in header if c not in names])
+        raise DataError(f"{path}: missing column(s) {', '.join(missing)}; the header must name {what}{hints}")
     index = {name: k for k, name in enumerate(header)}
     cols = [index[c] for c in names]
     at = index[text_column] if text_column else -1
@@ -162,6 +165,29 @@ def read_columns(
         parsed.append(values)
         done += len(block)
     return np.concatenate(parsed) if len(parsed) > 1 else parsed[0], texts
+
+
+#: A unit written into a column's name: ``x_mm``, ``X [mm]``, ``y(m)``, ``a_deg``.
+_UNIT_SUFFIX = re.compile(r"[\s_]*[(\[]?\s*(mm|m|deg|rad)\s*[)\]]?$", re.IGNORECASE)
+
+
+def misspelt(wanted: Sequence[str], columns: Sequence[str]) -> str:
+    """``; misspelt: 'X_mm' for x? ...`` for the wanted names that one of ``columns`` seems meant
+    to be (the same name in other capitals or with a unit after it, or a close spelling), with a
+    word on units when a column holds one in its name; empty when none is."""
+    plain = {_UNIT_SUFFIX.sub("", c).strip().lower() or c.lower(): c for c in columns}
+    matches = {}
+    for name in wanted:
+        close = difflib.get_close_matches(name, columns, n=1, cutoff=0.6)
+        match = plain.get(name.lower()) or (close[0] if close else None)
+        if match is not None:
+            matches[name] = match
+    if not matches:
+        return ""
+    text = "; misspelt: " + " ".join(f"'{column}' for {name}?" for name, column in matches.items())
+    if any(_UNIT_SUFFIX.search(column) for column in matches.values()):
+        text += " (a column's name holds no unit: give it with units=mm or degrees=True)"
+    return text
 
 
 #: Lines parsed at once.

@@ -49,10 +49,7 @@ def read_socket_folder(
         places = sorted(p for p in folder.iterdir() if p.is_dir() and socket_files(p))
         if places:
             return _placements(folder, places, joint_names, prismatic)
-        raise DataError(
-            f"{folder}: no hole_<name>.csv files (MUKCa's layout: one file per socket), nor folders "
-            "of them (one per placement of the fixture)"
-        )
+        raise _not_sockets(folder)
     blocks, labels = [], []
     for k, path in enumerate(files):
         values = _socket_rows(path)
@@ -78,6 +75,16 @@ def read_socket_folder(
         labels=np.concatenate(labels),
         point_names=names,
         point_rows=first,
+    )
+
+
+def _not_sockets(folder: Path) -> DataError:
+    """The error for a folder given as data that holds no socket files, naming its CSV files."""
+    csvs = sorted(p.name for p in folder.glob("*.csv"))
+    held = f" (it holds {', '.join(csvs[:3])}{', ...' if len(csvs) > 3 else ''})" if csvs else ""
+    return DataError(
+        f"{folder} is a folder without hole_<name>.csv files (MUKCa's layout: one file per socket) "
+        f"or folders of them (one per placement of the fixture): give the measurement CSV file{held}"
     )
 
 
