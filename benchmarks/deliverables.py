@@ -17,7 +17,7 @@ Held-out parts: TIAGo's other day; a fixed 30 % of the poses (seed 0) for the ot
 
 Usage::
 
-    python benchmarks/deliverables.py DATASETS_DIR
+    python benchmarks/deliverables.py DATASETS_DIR [--markdown docs/results/generated/deliverables.md]
 """
 
 from __future__ import annotations
@@ -32,6 +32,7 @@ import numpy as np
 import pinocchio as pin
 
 sys.path.insert(0, str(Path(__file__).parent))
+from markdown_page import command_line, table, write_page  # noqa: E402
 from real_data import load_panda, load_tiago_data, load_ur10  # noqa: E402
 
 import pincal  # noqa: E402
@@ -69,8 +70,12 @@ def reloaded_rms_mm(urdf: Path, test: Dataset) -> float:
     return float(np.sqrt(np.mean(np.sum((points - test.points) ** 2, axis=1)))) * 1e3
 
 
-def judge(name: str, robot: pincal.Robot, train: Dataset, test: Dataset, folder: Path) -> str:
-    """One dataset's line."""
+#: The table's columns: held-out RMS [mm] of each, then the checks.
+HEADER = ("dataset", "cause kept", "after", "reloaded", "exported", "plain", "none", "residual", "checks")
+
+
+def judge(name: str, robot: pincal.Robot, train: Dataset, test: Dataset, folder: Path) -> list[str]:
+    """One dataset's row (:data:`HEADER`)."""
     import json
 
     cal = pincal.calibrate(robot, train, test=test, params="auto", extension="auto")
@@ -87,33 +92,53 @@ def judge(name: str, robot: pincal.Robot, train: Dataset, test: Dataset, folder:
         f"exported=plain {'ok' if abs(exported - plain) <= 0.01 * plain else 'FAIL'}",
         f"alone/none {exported / none.test_after.rms_mm:.3f}",
     )
+    figures = [f"{v:.3f}" for v in (after, reloaded, exported, plain, none.test_after.rms_mm)]
+    return [name, cause, *figures, found.residual.verdict, ", ".join(checks)]
+
+
+def line(row: list[str]) -> str:
+    """A row as the script prints it."""
+    name, cause, after, reloaded, exported, plain, none, verdict, checks = row
     return (
-        f"{name:18s} {cause:34s} {after:8.3f} {reloaded:9.3f} {exported:9.3f} {plain:8.3f} "
-        f"{none.test_after.rms_mm:8.3f}  {found.residual.verdict:12s} {', '.join(checks)}"
+        f"{name:18s} {cause:34s} {after:>8s} {reloaded:>9s} {exported:>9s} {plain:>8s} "
+        f"{none:>8s}  {verdict:12s} {checks}"
     )
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Print the table."""
+    """Print the table (and write it as Markdown with ``--markdown``)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("datasets", type=Path, metavar="DATASETS_DIR", help="the folder ../shared/datasets")
+    parser.add_argument("--markdown", type=Path, help="write the results page's figures here")
     args = parser.parse_args(argv)
-    head = f"{'dataset':18s} {'cause kept':34s} {'after':>8s} {'reloaded':>9s} {'exported':>9s} {'plain':>8s}"
-    print("held-out RMS [mm]: after = URDF + sidecar (report), reloaded = the same loaded back,")
-    print("exported = URDF alone (report), plain = URDF alone by plain Pinocchio, none = extension=None fit")
-    print(f"{head} {'none':>8s}  {'residual':12s} checks")
+    legend = (
+        "held-out RMS [mm]: after = URDF + sidecar (report), reloaded = the same loaded back, "
+        "exported = URDF alone (report), plain = URDF alone by plain Pinocchio, none = extension=None fit; "
+        "checks: reload = reloaded within 1e-6 mm of after, exported=plain within 1 %, "
+        "alone/none = exported over none"
+    )
+    print(legend)
+    print(line(list(HEADER)))
+    rows = []
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         robot, train, val = load_tiago_data(args.datasets / "tiago_qualisys")
-        print(judge("tiago_qualisys", robot, train, val, folder))
+        rows.append(judge("tiago_qualisys", robot, train, val, folder))
+        print(line(rows[-1]))
         for name, loader in (("ur10_camera", load_ur10), ("panda_eye_in_hand", load_panda)):
             robot, data = loader(args.datasets / name)
             data = Dataset(data.joint_names, data.q, data.points)  # positions: the figures are distances
             fit, held = data.split(0.3, 0)
-            print(judge(name, robot, fit, held, folder))
+            rows.append(judge(name, robot, fit, held, folder))
+            print(line(rows[-1]))
         robot, data = pincal.load_robot("mrres5"), pincal.gao2013_data()[0]
         fit, held = data.split(0.3, 0)
-        print(judge("gao2013", robot, fit, held, folder))
+        rows.append(judge("gao2013", robot, fit, held, folder))
+        print(line(rows[-1]))
+    if args.markdown is not None:
+        names = {str(args.datasets).rstrip("/"): "DATASETS_DIR"}
+        command = command_line("deliverables.py", sys.argv[1:] if argv is None else argv, names)
+        write_page(args.markdown, command, [table(HEADER, rows), "", legend])
 
 
 if __name__ == "__main__":

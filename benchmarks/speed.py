@@ -19,10 +19,12 @@ Prints, with one BLAS thread (pincal's default) unless said otherwise:
    1.0.2 in one process, alternating, when ``figaroh`` is installed (``pip install '.[bench]'``).
 
 Times are medians of wall-clock :func:`time.perf_counter`. This is a benchmark, not a test.
+``--markdown PATH`` also writes what it prints as a page of the documentation (the library's
+figures on ``docs/results/speed.md``).
 
 Usage::
 
-    python benchmarks/speed.py [--quick] [--tiago DIR]
+    python benchmarks/speed.py [--quick] [--tiago DIR] [--markdown docs/results/generated/speed_library.md]
 """
 
 from __future__ import annotations
@@ -48,6 +50,7 @@ from pincal.identify.solver import identifiable_set, register, set_up, solve
 from pincal.threads import blas_threads
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+import markdown_page  # noqa: E402
 from figaroh_tiago import FigarohTiago, figaroh_available, time_whole_script  # noqa: E402
 from real_data import load_tiago_data, timed  # noqa: E402
 
@@ -55,6 +58,14 @@ TIAGO = Path(__file__).resolve().parents[2] / "shared" / "datasets" / "tiago_qua
 CASES = (("ur5", "position"), ("panda", "pose"))
 #: The installed ``pincal`` command (or the module, from a source tree without the script).
 PINCAL = [found] if (found := shutil.which("pincal")) else [sys.executable, "-m", "pincal.cli"]
+#: Every line printed so far (``--markdown`` writes them).
+PRINTED: list[str] = []
+
+
+def say(line: str = "") -> None:
+    """Print ``line`` and keep it for the page."""
+    print(line, flush=True)
+    PRINTED.append(line)
 
 
 def experiment(name: str, kind: str, n: int) -> tuple[pincal.Robot, pincal.Dataset]:
@@ -81,8 +92,8 @@ def lower_bound(robot: pincal.Robot, data: pincal.Dataset, shape: tuple[int, int
 
 def identification(sizes: tuple[int, ...]) -> None:
     """Section 1 and 2: calibrate's time, and the LM iteration against its bound."""
-    print("\n## Identification: pincal.calibrate(robot, data, 'placements'), every identifiable parameter")
-    print(
+    say("\n## Identification: pincal.calibrate(robot, data, 'placements'), every identifiable parameter")
+    say(
         f"{'case':16s} {'poses':>7s} {'calibrate [s]':>14s} {'iterations':>10s} {'per iter [ms]':>14s}"
         f" {'bound [ms]':>11s} {'ratio':>6s}"
     )
@@ -104,7 +115,7 @@ def identification(sizes: tuple[int, ...]) -> None:
             shape = (len(setup.problem.residuals(start)), int(free.sum()))
             bound = lower_bound(robot, data, shape, repeat)
             ratio = per_iteration / bound
-            print(
+            say(
                 f"{name + ' ' + kind:16s} {n:7d} {seconds:14.3f} {result.njev:10d}"
                 f" {per_iteration * 1e3:14.2f} {bound * 1e3:11.2f} {ratio:6.2f}"
             )
@@ -113,8 +124,8 @@ def identification(sizes: tuple[int, ...]) -> None:
 def default_call(sizes: tuple[int, ...]) -> None:
     """Section 1b: what ``pincal calibrate`` runs by default (parameter choice, outlier screen,
     the diagnosis of ``--extend auto``), against the same bound as one LM iteration."""
-    print("\n## The command's default: pincal.calibrate(..., params='auto', extension='auto', outliers=6)")
-    print(f"{'case':16s} {'poses':>7s} {'default [s]':>12s} {'bound [ms]':>11s} {'default / bound':>16s}")
+    say("\n## The command's default: pincal.calibrate(..., params='auto', extension='auto', outliers=6)")
+    say(f"{'case':16s} {'poses':>7s} {'default [s]':>12s} {'bound [ms]':>11s} {'default / bound':>16s}")
     for name, kind in CASES:
         for n in sizes:
             robot, data = experiment(name, kind, n)
@@ -127,22 +138,22 @@ def default_call(sizes: tuple[int, ...]) -> None:
             free = identifiable_set(setup, start).identifiable
             bound = lower_bound(robot, data, (len(setup.problem.residuals(start)), int(free.sum())), repeat)
             ratio = seconds / bound
-            print(f"{name + ' ' + kind:16s} {n:7d} {seconds:12.3f} {bound * 1e3:11.2f} {ratio:16.0f}")
+            say(f"{name + ' ' + kind:16s} {n:7d} {seconds:12.3f} {bound * 1e3:11.2f} {ratio:16.0f}")
 
 
 def diagnosis(cases: tuple[tuple[str, str, int], ...]) -> None:
     """Section 3: the whole diagnosis, every candidate."""
-    print("\n## Diagnosis: pincal.auto.diagnose.diagnose(robot, data), every candidate, 5 folds")
+    say("\n## Diagnosis: pincal.auto.diagnose.diagnose(robot, data), every candidate, 5 folds")
     for name, kind, n in cases:
         robot, data = experiment(name, kind, n)
         answer, seconds = timed(3, pincal.auto.diagnose.diagnose, robot, data, measure=kind)
-        print(f"{name} {kind}, {n} poses: {seconds:.2f} s for {len(answer.candidates)} candidates")
-        print(f"  {answer.summary()}")
+        say(f"{name} {kind}, {n} poses: {seconds:.2f} s for {len(answer.candidates)} candidates")
+        say(f"  {answer.summary()}")
 
 
 def threads(sizes: tuple[int, ...]) -> None:
     """Section 4: one BLAS thread against two, in-process."""
-    print("\n## BLAS threads: calibrate with 1 and 2 threads (UR5, position)")
+    say("\n## BLAS threads: calibrate with 1 and 2 threads (UR5, position)")
     for n in sizes:
         robot, data = experiment("ur5", "position", n)
         times = {}
@@ -150,7 +161,7 @@ def threads(sizes: tuple[int, ...]) -> None:
             with blas_threads(count):
                 times[count] = timed(3 if n <= 10000 else 1, pincal.calibrate, robot, data)[1]
         gain = times[1] / times[2]
-        print(f"{n:7d} poses: 1 thread {times[1]:.3f} s, 2 threads {times[2]:.3f} s ({gain:.2f}x)")
+        say(f"{n:7d} poses: 1 thread {times[1]:.3f} s, 2 threads {times[2]:.3f} s ({gain:.2f}x)")
 
 
 def process_time(command: list[str], env: dict[str, str] | None = None) -> tuple[float, float]:
@@ -165,9 +176,9 @@ def process_time(command: list[str], env: dict[str, str] | None = None) -> tuple
 
 def command_line(repeat: int) -> None:
     """Section 5: the command's start-up, and its BLAS threads in the default environment."""
-    print("\n## Command line")
+    say("\n## Command line")
     cpu = statistics.median(process_time([*PINCAL, "--help"])[1] for _ in range(repeat))
-    print(f"pincal --help: {cpu:.3f} s of CPU")
+    say(f"pincal --help: {cpu:.3f} s of CPU")
     robot, data = experiment("ur5", "position", 100)
     with tempfile.TemporaryDirectory() as folder:
         csv = Path(folder) / "poses.csv"
@@ -181,7 +192,7 @@ def command_line(repeat: int) -> None:
         ):
             walls[label] = statistics.median(process_time(command, env)[0] for _ in range(repeat))
         ratio = walls["default environment"] / walls["PINCAL_THREADS=1"]
-        print(
+        say(
             f"pincal calibrate ur5 (100 poses): default environment {walls['default environment']:.2f} s, "
             f"PINCAL_THREADS=1 {walls['PINCAL_THREADS=1']:.2f} s ({ratio:.2f}x)"
         )
@@ -189,12 +200,12 @@ def command_line(repeat: int) -> None:
 
 def against_figaroh(folder: Path, repeat: int) -> None:
     """Section 6: TIAGo, pincal and FIGAROH alternating in one process, then whole processes."""
-    print("\n## TIAGo (37 poses) against FIGAROH 1.0.2")
+    say("\n## TIAGo (37 poses) against FIGAROH 1.0.2")
     if not figaroh_available():
-        print("skipped: figaroh is not installed (pip install '.[bench]')")
+        say("skipped: figaroh is not installed (pip install '.[bench]')")
         return
     if not folder.is_dir():
-        print(f"skipped: no TIAGo data at {folder} (--tiago DIR)")
+        say(f"skipped: no TIAGo data at {folder} (--tiago DIR)")
         return
     robot, train, _ = load_tiago_data(folder)
     rival = FigarohTiago(folder)
@@ -216,7 +227,7 @@ def against_figaroh(folder: Path, repeat: int) -> None:
     figaroh = statistics.median(runs["FIGAROH full_params"])
     for label, times in runs.items():
         seconds = statistics.median(times)
-        print(f"{label:42s} {seconds:.4f} s  (FIGAROH / this: {figaroh / seconds:.1f}x)")
+        say(f"{label:42s} {seconds:.4f} s  (FIGAROH / this: {figaroh / seconds:.1f}x)")
     with tempfile.TemporaryDirectory() as tmp:
         csv = Path(tmp) / "train.csv"
         pincal.write_csv(csv, train)
@@ -224,8 +235,8 @@ def against_figaroh(folder: Path, repeat: int) -> None:
         command += ["--tip", "wrist_ft_tool_link"]
         ours = statistics.median(process_time(command)[0] for _ in range(3))
     theirs = statistics.median(time_whole_script(folder) for _ in range(3))
-    print(f"whole process: pincal calibrate {ours:.2f} s, FIGAROH's script {theirs:.2f} s", end=" ")
-    print(f"({theirs / ours:.1f}x)")
+    ratio = theirs / ours
+    say(f"whole process: pincal calibrate {ours:.2f} s, FIGAROH's script {theirs:.2f} s ({ratio:.1f}x)")
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -233,9 +244,10 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="up to 10,000 poses and fewer repeats")
     parser.add_argument("--tiago", type=Path, default=TIAGO, help="the TIAGo dataset folder")
+    parser.add_argument("--markdown", type=Path, help="also write what it prints as a results page here")
     args = parser.parse_args(argv)
     sizes = (100, 1000, 10000) if args.quick else (100, 1000, 10000, 100000)
-    print(f"pincal {pincal.__version__}, one BLAS thread unless said, {os.cpu_count()} cores")
+    say(f"pincal {pincal.__version__}, one BLAS thread unless said, {os.cpu_count()} cores")
     with blas_threads(1):
         identification(sizes)
         default_call(sizes[:-1] if len(sizes) > 3 else sizes)
@@ -243,6 +255,12 @@ def main(argv: list[str] | None = None) -> None:
     threads((1000, 10000) if args.quick else (1000, 10000, 100000))
     command_line(3 if args.quick else 5)
     against_figaroh(args.tiago, 5 if args.quick else 11)
+    if args.markdown is not None:
+        names = {str(args.tiago).rstrip("/"): "TIAGO_DIR"}
+        command = markdown_page.command_line("speed.py", sys.argv[1:] if argv is None else argv, names)
+        # The page's own first line names pincal's version, the cores and the one BLAS thread.
+        printed = "\n".join(PRINTED[1:]).strip("\n")
+        markdown_page.write_page(args.markdown, command, [markdown_page.text_block(printed)])
 
 
 if __name__ == "__main__":

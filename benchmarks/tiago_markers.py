@@ -102,6 +102,12 @@ def held_mm(cal: pincal.Calibration) -> float:
     return cal.test_after.rms_mm
 
 
+def exported(cal: pincal.Calibration) -> str:
+    """What the guard let the calibration export: ``fit``, or ``nominal`` (the URDF's geometry
+    with the registration and tool fitted: the fit was not reliably better on its own poses)."""
+    return "fit" if cal.guard is None or cal.guard.kept_fit else "nominal"
+
+
 def run(datasets: Path) -> tuple[list[MarkerRow], list[str]]:
     """The table's rows and the lines of what the other markers added."""
     folder = datasets / "tiago_qualisys"
@@ -131,6 +137,8 @@ def run(datasets: Path) -> tuple[list[MarkerRow], list[str]]:
         f"the four one-marker calibrations {np.sqrt(np.mean([held_mm(o) ** 2 for o in ones])):.3f} mm",
         f"cause kept: four markers {four.extension.label if four.extension else 'none'}; one marker "
         + ", ".join(o.extension.label if o.extension else "none" for o in ones),
+        f"exported (the guard): four markers {exported(four)}; one marker "
+        + ", ".join(exported(o) for o in ones),
         "rigid body check (training day): pair, measured distance mean ± std over the poses, the fitted "
         "points' distance [mm]",
     ]

@@ -15,7 +15,7 @@ import pinocchio as pin
 import pytest
 
 import pincal
-import pincal.kinematics.mdh
+from pincal.simulation.papers import zhang_truth
 
 #: Zhang et al., held-out position error [mm] before and after: (mean, max, std).
 ZHANG_POSITION_MM = {"before": (1.4980, 1.8024, 0.1995), "after": (0.1364, 0.2137, 0.0557)}
@@ -49,27 +49,11 @@ def test_gao2013_distance_calibration_cross_validated() -> None:
     assert cv.after.mean_mm < cv.before.mean_mm
 
 
-def _zhang_truth(robot: pincal.Robot, seed: int = 0) -> pincal.simulation.truth.TrueRobot:
-    """Zhang et al.'s simulated errors: every free MDH parameter off by a random sign times
-    U(0.1, 0.5) mm (lengths) or U(0.5, 2) mrad (angles); base, instrument and tool exact."""
-    model = pincal.kinematics.mdh.make_model("mdh", robot)
-    rng = np.random.default_rng(seed)
-    x = np.zeros(model.n_params)
-    for i, (name, unit) in enumerate(zip(model.names, model.units)):
-        if name in model.held or name.startswith("base."):
-            continue
-        size = rng.uniform(0.1e-3, 0.5e-3) if unit == "m" else rng.uniform(0.5e-3, 2e-3)
-        x[i] = rng.choice([-1.0, 1.0]) * size
-    return pincal.simulation.truth.TrueRobot(
-        model=model, x=x, instrument_T_base=pin.SE3.Identity(), tool=pin.SE3.Identity()
-    )
-
-
 @pytest.fixture(scope="module")
 def zhang() -> pincal.Calibration:
     """The Zhang et al. protocol on the bundled ``zu3``, calibrated with MDH on pose data."""
     robot = pincal.load_robot("zu3")
-    truth = _zhang_truth(robot, seed=0)
+    truth = zhang_truth(robot, seed=0)
     assert np.count_nonzero(truth.x) == 5 * robot.n_joints - len(truth.model.held)
     _, fit, test = pincal.simulate(robot, 50, 100, seed=0, noise=2e-5, rot_noise=1.5e-4, truth=truth)
     return pincal.calibrate(

@@ -32,7 +32,7 @@ from pincal.identify.prior import (
     log_evidence,
     parse_prior,
 )
-from pincal.identify.solver import identifiable_set, register, set_up, solve
+from pincal.identify.solver import PRIOR_WEIGHT, identifiable_set, register, set_up, solve
 from pincal.simulation.truth import TrueRobot, points_truth, simulate_points
 
 NOISE = 5e-5  # [m] 1σ per coordinate of where the hand holds the ball
@@ -110,16 +110,17 @@ def test_one_eigendecomposition_gives_every_weights_step_and_determinant(seed: i
 
 
 def test_the_linearised_curve_is_the_evidence_of_each_fit() -> None:
-    """The scan's Gauss-Newton steps from the weakest pull's fit give each weight's evidence as
-    the fit at that weight does, to 0.1 (nats) over the 17 weights, where neighbours differ by
-    10 or more: the choice is the one a fit per weight would make."""
+    """The scan's Gauss-Newton steps from the default pull's fit (where
+    :func:`~pincal.identify.prior.choose_weight` starts) give each weight's evidence as the fit
+    at that weight does, to 0.1 (nats) over the 17 weights, where neighbours differ by 10 or
+    more: the choice is the one a fit per weight would make."""
     robot = _robot("panda")
     data = simulate_points(points_truth(robot, 1), TRAIN_SOCKETS, 60, NOISE, np.random.default_rng(2))
     setup = set_up(robot, data, "placements", point_distances=DISTANCES)
     start = register(setup)
     free = identifiable_set(setup, start).identifiable
-    weak = replace(setup, prior_weight=WEIGHTS[0])
-    curve = evidence_curve(weak, solve(weak, start, free)[0], free, WEIGHTS)
+    default = replace(setup, prior_weight=PRIOR_WEIGHT)
+    curve = evidence_curve(default, solve(default, start, free)[0], free, WEIGHTS)
     for weight, linear in zip(WEIGHTS, curve):
         trial = replace(setup, prior_weight=weight)
         assert abs(linear - log_evidence(trial, solve(trial, start, free)[0], free)) <= 0.1, weight

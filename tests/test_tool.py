@@ -25,18 +25,11 @@ import pytest
 import pincal
 import pincal.tool.tcp
 from pincal.cli import main
+from pincal.simulation.papers import XIONG_2012_POSES
 from pincal.tool.tcp import calibrate_tool
 
-#: Table 1 of Xiong 2012: flange poses x, y, z [mm], a, b, c [deg]. Rows 1-4 are the TCP poses,
-#: rows 4-6 the Z/X orientation rows (origin, +X move, +Z move); row 4 is shared.
-PAPER_POSES = (
-    (1028.29, 233.29, 1432.98, -156.2, 44.8, -126.6),
-    (1118.69, -231.99, 1478.85, 153.6, 19.0, 136.1),
-    (1129.45, 25.0, 1564.0, -175.1, 29.4, -175.0),
-    (983.98, 0.39, 1502.31, 179.8, 54.3, 180.0),
-    (605.47, 0.39, 1502.31, 179.8, 54.3, 180.0),
-    (983.98, 0.39, 1122.24, 179.8, 54.3, 180.0),
-)
+#: Table 1 of Xiong 2012: flange poses x, y, z [mm], a, b, c [deg].
+PAPER_POSES = XIONG_2012_POSES
 #: The paper's original column names, in the order of :data:`PAPER_POSES`.
 PAPER_HEADER = ("X_mm", "Y_mm", "Z_mm", "A_deg", "B_deg", "C_deg")
 #: The contract's column names for Euler poses.

@@ -2,9 +2,10 @@
 
 Independent pieces of work (the folds of a cross-validation, the draws of a null) run in worker
 processes, one per core (:func:`parallel_map`): Python's own work in pincal's loops is most of
-their time, so threads would share one interpreter lock (``benchmarks/speed.py`` measures
-processes against the serial loop). Each worker runs with one BLAS thread and does exactly what
-the serial loop does, so the answers are bit-for-bit the same (``tests/test_fast_paths.py``).
+their time, so threads would share one interpreter lock (``benchmarks/speed_bars.py`` times
+commands in worker processes and in one, ``PINCAL_WORKERS=1``). Each worker runs with one BLAS
+thread and does exactly what the serial loop does, so the answers are bit-for-bit the same
+(``tests/test_fast_paths.py``).
 ``PINCAL_WORKERS``: the number of worker processes (default: the cores this process may use; 1:
 serial). A worker never starts workers of its own.
 
