@@ -24,7 +24,7 @@ NOISE = 5e-5  # per axis [m]
 NARROW = 0.47  # margin of each range left out at both ends: poses in the central 6 %
 #: Seeds whose narrow-range fit on an exact URDF passes the guard on its own poses (the guard's
 #: own false exports, a few per hundred sessions): the cases the extrapolation check is for.
-PASSING_SEEDS = (100, 143, 193)
+PASSING_SEEDS = (44, 68, 143)
 #: Seeds whose fit of the distances between 30 poses over the whole range of an exact URDF passes
 #: the guard and predicts new poses' distances worse than the nominal model.
 DISTANCE_SEEDS = (10, 13)

@@ -60,7 +60,7 @@ def test_an_exact_urdf_is_exported_at_most_once_in_twenty_sessions() -> None:
     most 1 (its nominal rate is 2.3 %)."""
     guards = _exact_guards()
     assert sum(z > Z_MIN for z, _ in guards) >= 3
-    assert sum(z > z_min for z, z_min in guards) <= 1
+    assert sum(z > z_min for z, z_min in guards) <= 2
     assert all(z_min >= Z_MIN for _, z_min in guards)
 
 
@@ -88,7 +88,8 @@ def test_given_parameters_keep_the_fixed_threshold() -> None:
 def test_distance_data_with_given_parameters_get_the_null_of_the_guard() -> None:
     """Pairs share their poses' noise: with every parameter given and an exact URDF, the fixed
     threshold exports at least 3 of 20 fits (15 poses, every pair); the null of the guard alone
-    (43 draws, nominal rate 2.3 %) at most 1, and the report says where it came from."""
+    (43 draws, nominal rate 2.3 %) at most 2 (3 or more of 20 at 2.3 % has a chance of 1 %),
+    and the report says where it came from."""
     guards, said = [], ""
     for seed in range(20):
         fit, _ = _session(seed, 15, exact=True)
@@ -97,7 +98,7 @@ def test_distance_data_with_given_parameters_get_the_null_of_the_guard() -> None
         guards.append((cal.guard.z, cal.guard.z_min))
         said = pincal.report_dict(cal)["guard"]["z_min_from"]
     assert sum(z > Z_MIN for z, _ in guards) >= 3
-    assert sum(z > z_min for z, z_min in guards) <= 1
+    assert sum(z > z_min for z, z_min in guards) <= 2
     assert all(z_min >= Z_MIN for _, z_min in guards)
     assert "given parameters on 43 draws" in said and "2.3%" in said
 
@@ -165,3 +166,24 @@ def test_draw_batches_cover_every_draw_once_on_two_cores() -> None:
         batches = draw_batches(plan, draws)
         assert np.array_equal(np.concatenate(batches), np.arange(draws)) and len(batches) >= 2
         assert max(map(len, batches)) - min(map(len, batches)) <= 1
+
+
+def test_a_fit_many_times_better_on_few_uneven_poses_is_kept() -> None:
+    """20 poses planned in a 30 cm cube (``plan --task``), a robot 0.5 mm / 0.5 mrad off its URDF:
+    the fit's validation RMS is about 18 times the nominal's, but the nominal errors spread over
+    the poses by more than their mean. The mean of the squared-error differences could not pass
+    more than about √20 / 1.1 = 3.9 standard errors however good the fit, under the 4.2 that the
+    selection reaches on pure noise, and the URDF was delivered; the log ratios pass by far."""
+    from pincal.planning.candidates import candidate_poses
+    from pincal.planning.plan import plan_poses
+
+    robot = _ur5()
+    q = candidate_poses(robot, 8000, 2)
+    tips = np.array([robot.frame_placement(c).translation for c in q])
+    task = q[np.all((tips >= [0.25, -0.15, 0.15]) & (tips <= [0.55, 0.15, 0.45]), axis=1)][:200]
+    plan = plan_poses(robot, 20, criterion="i", task=task, candidates=2000, seed=1)
+    truth = random_truth(robot, 1, tool_distance=(0.05, 0.12))
+    cal = pincal.calibrate(robot, truth.measure(plan.q, 3e-5, None, 30_001), params="auto", extension="none")
+    assert cal.guard is not None and cal.guard.fit_cv_rms_mm < 0.1 * cal.guard.nominal_cv_rms_mm
+    assert cal.guard.z_min > Z_MIN  # the null of the selection
+    assert cal.guard.reliable and cal.guard.kept_fit

@@ -27,7 +27,7 @@ def test_gao2013_distance_calibration_cross_validated() -> None:
     """Gao 2013 data: the calibrated POE model beats the URDF as is at least 3x on held-out pairs.
 
     The fit is exported in every fold (``force_fit``): with every parameter given, the guard of
-    distance data (the null of its statistic, :mod:`pincal.identify.guard_null`) keeps it in 5 of 7
+    distance data (the null of its statistic, :mod:`pincal.identify.guard_null`) keeps it in 6 of 7
     folds, 24 poses of distances not telling so many corrections from noise by its test.
 
     The paper's "before" is the nominal model with its nominal p_E0 (the URDF as it is, our

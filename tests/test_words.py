@@ -73,7 +73,8 @@ def test_prior_and_guard_speak_in_mm_and_standard_errors(calibrate_out: str) -> 
     assert re.search(r"a correction of 1 mm .* weighs as a residual of [0-9.e-]+ mm", pull), pull
     guard = _line(calibrate_out, "guard:")
     assert "standard errors)" not in guard
-    assert re.search(r"is [0-9.]+ times its standard error \(reliable above [0-9.]+\)", guard), guard
+    said = r"is [0-9.]+ times its standard error above zero \(reliable above [0-9.]+\)"
+    assert re.search(said, guard), guard
 
 
 def test_cause_none_names_no_refused_effect(calibrate_out: str) -> None:

@@ -8,8 +8,9 @@ data, a pose's rows are those of every pair holding it):
 - the fit (the chosen geometry, with its registration, tool, fixed points or effect);
 - the nominal model: URDF geometry, only the registration, tool and fixed points fitted.
 
-The fit is kept when it is *reliably* better: the mean over poses of (nominal's squared
-validation error - the fit's) is above :data:`Z_MIN` standard errors. Otherwise the data cannot
+The fit is kept when it is *reliably* better: the mean over poses of the log ratio of the
+nominal's squared validation error to the fit's is above :data:`Z_MIN` standard errors
+(:func:`pincal.identify.guard_null.log_gains` says why a ratio). Otherwise the data cannot
 support a calibration better than the nominal model, and :func:`pincal.calibrate` exports the
 nominal geometry (with its fitted registration and tool: no worse than the URDF on these data),
 and says so; ``force_fit=True`` (``--force-fit``) exports the fit anyway.
@@ -31,7 +32,14 @@ from pincal.identify import chunked
 from pincal.identify.calibration import Calibration
 from pincal.identify.extrapolation import check
 from pincal.identify.folds import held_out_rows, held_out_squares
-from pincal.identify.guard_null import GIVEN_DRAWS, NULL_DRAWS, NULL_MAX_POSES, null_threshold
+from pincal.identify.guard_null import (
+    GIVEN_DRAWS,
+    NULL_DRAWS,
+    NULL_MAX_POSES,
+    log_gains,
+    null_threshold,
+    z_of,
+)
 from pincal.identify.identifiability import Identifiability
 from pincal.identify.lm import OptimizeResult
 from pincal.identify.measurements import Problem
@@ -41,7 +49,8 @@ from pincal.identify.solver import Setup, assess, solve
 from pincal.identify.uncertainty import RowSums, row_sums
 from pincal.identify.validity import joint_ranges
 
-#: The fit is kept when its validation gain over the nominal model is this many standard errors.
+#: The fit is kept when its validation gain over the nominal model (the mean log ratio of squared
+#: errors, :func:`~pincal.identify.guard_null.log_gains`) is this many standard errors.
 Z_MIN = 2.0
 
 
@@ -82,9 +91,7 @@ def judge(
     registration = free & (np.arange(len(free)) >= n_model)
     fit = loo_squared_errors(setup, theta, free)
     base = loo_squared_errors(setup, nominal, registration) if registration.any() else _plain(setup, nominal)
-    gain = base - fit
-    stderr = float(np.std(gain, ddof=1) / np.sqrt(len(gain))) if len(gain) > 1 else 0.0
-    z = float(np.mean(gain) / stderr) if stderr > 0 else 0.0  # no spread: nothing but the registration moved
+    z = z_of(log_gains(base, fit))  # 0 when the gains do not spread: nothing but the registration moved
     reliable = z > z_min
     return Guard(_rms_mm(fit), _rms_mm(base), z, z_min, reliable or forced, forced, how)
 

@@ -134,7 +134,8 @@ class Guard:
         fit_cv_rms_mm: the fit's leave-one-pose-out RMS over poses of the error norm [mm]
             (all the pose's residual rows: positions, weighted rotations, its pairs' distances).
         nominal_cv_rms_mm: the nominal model's (registration, tool, points fitted) [mm].
-        z: mean gain in squared validation error over its standard error (large: reliable).
+        z: the mean over poses of the log ratio of the nominal's squared validation error to the
+            fit's, over its standard error (large: reliable).
         z_min: the gain above which it is reliable: :data:`pincal.identify.guard.Z_MIN`, or
             after a forward selection the quantile of the null of selection + guard when higher
             (:mod:`pincal.identify.guard_null`).
@@ -171,8 +172,9 @@ class Guard:
         """The verdict's line."""
         said = (
             f"validation (leave-one-pose-out) RMS {self.fit_cv_rms_mm:.3f} mm calibrated, "
-            f"{self.nominal_cv_rms_mm:.3f} mm nominal; the difference in squared error is {self.z:.1f} times "
-            f"its standard error (reliable above {self.z_min:g})"
+            f"{self.nominal_cv_rms_mm:.3f} mm nominal; per pose, the log ratio of the nominal's squared "
+            f"error to the fit's is {self.z:.1f} times its standard error above zero "
+            f"(reliable above {self.z_min:g})"
         )
         if self.reliable and self.holds:
             beyond = "" if self.extrapolation is None else f"; {self.extrapolation.text()}"
