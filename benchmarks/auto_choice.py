@@ -54,7 +54,6 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import contextlib  # noqa: E402
-import io  # noqa: E402
 import json  # noqa: E402
 import statistics  # noqa: E402
 import sys  # noqa: E402
@@ -63,7 +62,7 @@ from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
-from markdown_page import command_line, text_block, write_page  # noqa: E402
+from markdown_page import Tee, command_line, text_block, write_page  # noqa: E402
 
 import pincal  # noqa: E402
 from pincal.auto.choice import choice_of  # noqa: E402
@@ -318,7 +317,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.quick:
         args.seeds, args.fit_seeds, args.repeat = min(args.seeds, 3), min(args.fit_seeds, 3), 3
         args.effect_seeds = min(args.effect_seeds, 3)
-    printed = _Tee(sys.stdout)
+    printed = Tee(sys.stdout)
     with contextlib.redirect_stdout(printed):
         ok = run_parts(args)
     if args.markdown:
@@ -327,18 +326,6 @@ def main(argv: list[str] | None = None) -> int:
             Path(args.markdown), command_line("auto_choice.py", given, {}), [text_block(printed.getvalue())]
         )
     return 0 if ok else 1
-
-
-class _Tee(io.StringIO):
-    """Standard output kept as well as printed."""
-
-    def __init__(self, out: Any) -> None:
-        super().__init__()
-        self.out = out
-
-    def write(self, text: str) -> int:
-        self.out.write(text)
-        return super().write(text)
 
 
 def run_parts(args: argparse.Namespace) -> bool:

@@ -8,6 +8,7 @@ produced them), so that running the command again refreshes the figures and noth
 from __future__ import annotations
 
 import datetime
+import io
 import json
 import os
 import sys
@@ -52,6 +53,19 @@ def table(header: Sequence[str], rows: Sequence[Sequence[object]]) -> str:
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     lines += ["| " + " | ".join(str(v) for v in row) + " |" for row in rows]
     return "\n".join(lines)
+
+
+class Tee(io.StringIO):
+    """Standard output kept as well as printed (``contextlib.redirect_stdout(Tee(sys.stdout))``):
+    a benchmark's page is then what it printed."""
+
+    def __init__(self, out: Any) -> None:
+        super().__init__()
+        self.out = out
+
+    def write(self, text: str) -> int:
+        self.out.write(text)
+        return super().write(text)
 
 
 def text_block(text: str) -> str:

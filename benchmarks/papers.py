@@ -33,21 +33,17 @@ sys.path.insert(0, str(Path(__file__).parent))
 from markdown_page import command_line, table, write_page  # noqa: E402
 
 import pincal  # noqa: E402
-from pincal.simulation.papers import XIONG_2012_POSES, zhang_truth  # noqa: E402
+from pincal.simulation.papers import (  # noqa: E402
+    XIONG_2012_POSES,
+    XIONG_2012_ROTATION,
+    XIONG_2012_TCP_MM,
+    ZHANG_NOISE,
+    ZHANG_POSITION_MM,
+    ZHANG_ROTATION_MRAD,
+    zhang_truth,
+)
 from pincal.tool.flange_poses import read_flange_poses  # noqa: E402
 from pincal.tool.tcp import calibrate_tool  # noqa: E402
-
-#: Zhang et al., held-out position error [mm] before and after: (mean, max, std).
-ZHANG_POSITION_MM = {"before": (1.4980, 1.8024, 0.1995), "after": (0.1364, 0.2137, 0.0557)}
-#: Zhang et al., held-out orientation error [mrad] before and after: (mean, max, std).
-ZHANG_ROTATION_MRAD = {"before": (5.9, 6.6, 0.4), "after": (0.6, 0.8, 0.1)}
-#: Zhang's noise: position [m] and orientation [rad], 1σ per axis.
-ZHANG_NOISE = (2e-5, 1.5e-4)
-
-#: Xiong's result as printed: the TCP [mm] and the tool axes n and a in the flange frame.
-XIONG_TCP = (119.62, -0.32, 351.90)
-XIONG_N = (0.584, 0.0, -0.812)
-XIONG_A = (0.812, 0.0, 0.584)
 
 
 def zhang() -> str:
@@ -106,11 +102,11 @@ def xiong() -> str:
         return "(" + ", ".join(f"{v:.{digits}f}" for v in rounded).replace("-", "−") + ")"
 
     rows = [
-        ["TCP [mm]", vec(tool.tcp, 2), vec(XIONG_TCP, 2)],
+        ["TCP [mm]", vec(tool.tcp, 2), vec(XIONG_2012_TCP_MM, 2)],
         ["TCP std σ [mm]", vec(tool.tcp_std, 2), ""],
         ["fit error δ (eq. 10) [mm]", f"{tool.fit_error:.2f}", ""],
-        ["tool axis n", vec(tool.rotation[:, 0], 3), vec(XIONG_N, 3)],
-        ["tool axis a", vec(tool.rotation[:, 2], 3), vec(XIONG_A, 3)],
+        ["tool axis n", vec(tool.rotation[:, 0], 3), vec(XIONG_2012_ROTATION[:, 0], 3)],
+        ["tool axis a", vec(tool.rotation[:, 2], 3), vec(XIONG_2012_ROTATION[:, 2], 3)],
     ]
     return (
         "**Xiong et al. 2012**, the paper's six flange poses, `pincal tcp --orientation zx --units mm`:\n\n"

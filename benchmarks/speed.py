@@ -30,6 +30,7 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import resource
 import shutil
@@ -58,14 +59,6 @@ TIAGO = Path(__file__).resolve().parents[2] / "shared" / "datasets" / "tiago_qua
 CASES = (("ur5", "position"), ("panda", "pose"))
 #: The installed ``pincal`` command (or the module, from a source tree without the script).
 PINCAL = [found] if (found := shutil.which("pincal")) else [sys.executable, "-m", "pincal.cli"]
-#: Every line printed so far (``--markdown`` writes them).
-PRINTED: list[str] = []
-
-
-def say(line: str = "") -> None:
-    """Print ``line`` and keep it for the page."""
-    print(line, flush=True)
-    PRINTED.append(line)
 
 
 def experiment(name: str, kind: str, n: int) -> tuple[pincal.Robot, pincal.Dataset]:
@@ -92,8 +85,8 @@ def lower_bound(robot: pincal.Robot, data: pincal.Dataset, shape: tuple[int, int
 
 def identification(sizes: tuple[int, ...]) -> None:
     """Section 1 and 2: calibrate's time, and the LM iteration against its bound."""
-    say("\n## Identification: pincal.calibrate(robot, data, 'placements'), every identifiable parameter")
-    say(
+    print("\n## Identification: pincal.calibrate(robot, data, 'placements'), every identifiable parameter")
+    print(
         f"{'case':16s} {'poses':>7s} {'calibrate [s]':>14s} {'iterations':>10s} {'per iter [ms]':>14s}"
         f" {'bound [ms]':>11s} {'ratio':>6s}"
     )
@@ -115,7 +108,7 @@ def identification(sizes: tuple[int, ...]) -> None:
             shape = (len(setup.problem.residuals(start)), int(free.sum()))
             bound = lower_bound(robot, data, shape, repeat)
             ratio = per_iteration / bound
-            say(
+            print(
                 f"{name + ' ' + kind:16s} {n:7d} {seconds:14.3f} {result.njev:10d}"
                 f" {per_iteration * 1e3:14.2f} {bound * 1e3:11.2f} {ratio:6.2f}"
             )
@@ -124,8 +117,8 @@ def identification(sizes: tuple[int, ...]) -> None:
 def default_call(sizes: tuple[int, ...]) -> None:
     """Section 1b: what ``pincal calibrate`` runs by default (parameter choice, outlier screen,
     the diagnosis of ``--extend auto``), against the same bound as one LM iteration."""
-    say("\n## The command's default: pincal.calibrate(..., params='auto', extension='auto', outliers=6)")
-    say(f"{'case':16s} {'poses':>7s} {'default [s]':>12s} {'bound [ms]':>11s} {'default / bound':>16s}")
+    print("\n## The command's default: pincal.calibrate(..., params='auto', extension='auto', outliers=6)")
+    print(f"{'case':16s} {'poses':>7s} {'default [s]':>12s} {'bound [ms]':>11s} {'default / bound':>16s}")
     for name, kind in CASES:
         for n in sizes:
             robot, data = experiment(name, kind, n)
@@ -138,22 +131,22 @@ def default_call(sizes: tuple[int, ...]) -> None:
             free = identifiable_set(setup, start).identifiable
             bound = lower_bound(robot, data, (len(setup.problem.residuals(start)), int(free.sum())), repeat)
             ratio = seconds / bound
-            say(f"{name + ' ' + kind:16s} {n:7d} {seconds:12.3f} {bound * 1e3:11.2f} {ratio:16.0f}")
+            print(f"{name + ' ' + kind:16s} {n:7d} {seconds:12.3f} {bound * 1e3:11.2f} {ratio:16.0f}")
 
 
 def diagnosis(cases: tuple[tuple[str, str, int], ...]) -> None:
     """Section 3: the whole diagnosis, every candidate."""
-    say("\n## Diagnosis: pincal.auto.diagnose.diagnose(robot, data), every candidate, 5 folds")
+    print("\n## Diagnosis: pincal.auto.diagnose.diagnose(robot, data), every candidate, 5 folds")
     for name, kind, n in cases:
         robot, data = experiment(name, kind, n)
         answer, seconds = timed(3, pincal.auto.diagnose.diagnose, robot, data, measure=kind)
-        say(f"{name} {kind}, {n} poses: {seconds:.2f} s for {len(answer.candidates)} candidates")
-        say(f"  {answer.summary()}")
+        print(f"{name} {kind}, {n} poses: {seconds:.2f} s for {len(answer.candidates)} candidates")
+        print(f"  {answer.summary()}")
 
 
 def threads(sizes: tuple[int, ...]) -> None:
     """Section 4: one BLAS thread against two, in-process."""
-    say("\n## BLAS threads: calibrate with 1 and 2 threads (UR5, position)")
+    print("\n## BLAS threads: calibrate with 1 and 2 threads (UR5, position)")
     for n in sizes:
         robot, data = experiment("ur5", "position", n)
         times = {}
@@ -161,7 +154,7 @@ def threads(sizes: tuple[int, ...]) -> None:
             with blas_threads(count):
                 times[count] = timed(3 if n <= 10000 else 1, pincal.calibrate, robot, data)[1]
         gain = times[1] / times[2]
-        say(f"{n:7d} poses: 1 thread {times[1]:.3f} s, 2 threads {times[2]:.3f} s ({gain:.2f}x)")
+        print(f"{n:7d} poses: 1 thread {times[1]:.3f} s, 2 threads {times[2]:.3f} s ({gain:.2f}x)")
 
 
 def process_time(command: list[str], env: dict[str, str] | None = None) -> tuple[float, float]:
@@ -176,9 +169,9 @@ def process_time(command: list[str], env: dict[str, str] | None = None) -> tuple
 
 def command_line(repeat: int) -> None:
     """Section 5: the command's start-up, and its BLAS threads in the default environment."""
-    say("\n## Command line")
+    print("\n## Command line")
     cpu = statistics.median(process_time([*PINCAL, "--help"])[1] for _ in range(repeat))
-    say(f"pincal --help: {cpu:.3f} s of CPU")
+    print(f"pincal --help: {cpu:.3f} s of CPU")
     robot, data = experiment("ur5", "position", 100)
     with tempfile.TemporaryDirectory() as folder:
         csv = Path(folder) / "poses.csv"
@@ -192,7 +185,7 @@ def command_line(repeat: int) -> None:
         ):
             walls[label] = statistics.median(process_time(command, env)[0] for _ in range(repeat))
         ratio = walls["default environment"] / walls["PINCAL_THREADS=1"]
-        say(
+        print(
             f"pincal calibrate ur5 (100 poses): default environment {walls['default environment']:.2f} s, "
             f"PINCAL_THREADS=1 {walls['PINCAL_THREADS=1']:.2f} s ({ratio:.2f}x)"
         )
@@ -200,12 +193,12 @@ def command_line(repeat: int) -> None:
 
 def against_figaroh(folder: Path, repeat: int) -> None:
     """Section 6: TIAGo, pincal and FIGAROH alternating in one process, then whole processes."""
-    say("\n## TIAGo (37 poses) against FIGAROH 1.0.2")
+    print("\n## TIAGo (37 poses) against FIGAROH 1.0.2")
     if not figaroh_available():
-        say("skipped: figaroh is not installed (pip install '.[bench]')")
+        print("skipped: figaroh is not installed (pip install '.[bench]')")
         return
     if not folder.is_dir():
-        say(f"skipped: no TIAGo data at {folder} (--tiago DIR)")
+        print(f"skipped: no TIAGo data at {folder} (--tiago DIR)")
         return
     robot, train, _ = load_tiago_data(folder)
     rival = FigarohTiago(folder)
@@ -227,7 +220,7 @@ def against_figaroh(folder: Path, repeat: int) -> None:
     figaroh = statistics.median(runs["FIGAROH full_params"])
     for label, times in runs.items():
         seconds = statistics.median(times)
-        say(f"{label:42s} {seconds:.4f} s  (FIGAROH / this: {figaroh / seconds:.1f}x)")
+        print(f"{label:42s} {seconds:.4f} s  (FIGAROH / this: {figaroh / seconds:.1f}x)")
     with tempfile.TemporaryDirectory() as tmp:
         csv = Path(tmp) / "train.csv"
         pincal.write_csv(csv, train)
@@ -236,7 +229,7 @@ def against_figaroh(folder: Path, repeat: int) -> None:
         ours = statistics.median(process_time(command)[0] for _ in range(3))
     theirs = statistics.median(time_whole_script(folder) for _ in range(3))
     ratio = theirs / ours
-    say(f"whole process: pincal calibrate {ours:.2f} s, FIGAROH's script {theirs:.2f} s ({ratio:.1f}x)")
+    print(f"whole process: pincal calibrate {ours:.2f} s, FIGAROH's script {theirs:.2f} s ({ratio:.1f}x)")
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -246,21 +239,27 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--tiago", type=Path, default=TIAGO, help="the TIAGo dataset folder")
     parser.add_argument("--markdown", type=Path, help="also write what it prints as a results page here")
     args = parser.parse_args(argv)
-    sizes = (100, 1000, 10000) if args.quick else (100, 1000, 10000, 100000)
-    say(f"pincal {pincal.__version__}, one BLAS thread unless said, {os.cpu_count()} cores")
+    print(f"pincal {pincal.__version__}, one BLAS thread unless said, {os.cpu_count()} cores")
+    printed = markdown_page.Tee(sys.stdout)  # the page's own first line names the version and cores
+    with contextlib.redirect_stdout(printed):
+        sections(args.quick, args.tiago)
+    if args.markdown is not None:
+        names = {str(args.tiago).rstrip("/"): "TIAGO_DIR"}
+        command = markdown_page.command_line("speed.py", sys.argv[1:] if argv is None else argv, names)
+        page = markdown_page.text_block(printed.getvalue().strip("\n"))
+        markdown_page.write_page(args.markdown, command, [page])
+
+
+def sections(quick: bool, tiago: Path) -> None:
+    """Print every section (``quick``: up to 10,000 poses and fewer repeats)."""
+    sizes = (100, 1000, 10000) if quick else (100, 1000, 10000, 100000)
     with blas_threads(1):
         identification(sizes)
         default_call(sizes[:-1] if len(sizes) > 3 else sizes)
         diagnosis((("ur5", "position", 100), ("panda", "pose", 100), ("ur5", "position", 1000)))
-    threads((1000, 10000) if args.quick else (1000, 10000, 100000))
-    command_line(3 if args.quick else 5)
-    against_figaroh(args.tiago, 5 if args.quick else 11)
-    if args.markdown is not None:
-        names = {str(args.tiago).rstrip("/"): "TIAGO_DIR"}
-        command = markdown_page.command_line("speed.py", sys.argv[1:] if argv is None else argv, names)
-        # The page's own first line names pincal's version, the cores and the one BLAS thread.
-        printed = "\n".join(PRINTED[1:]).strip("\n")
-        markdown_page.write_page(args.markdown, command, [markdown_page.text_block(printed)])
+    threads((1000, 10000) if quick else (1000, 10000, 100000))
+    command_line(3 if quick else 5)
+    against_figaroh(tiago, 5 if quick else 11)
 
 
 if __name__ == "__main__":

@@ -15,12 +15,7 @@ import pinocchio as pin
 import pytest
 
 import pincal
-from pincal.simulation.papers import zhang_truth
-
-#: Zhang et al., held-out position error [mm] before and after: (mean, max, std).
-ZHANG_POSITION_MM = {"before": (1.4980, 1.8024, 0.1995), "after": (0.1364, 0.2137, 0.0557)}
-#: Zhang et al., held-out orientation error [mrad] before and after: (mean, max, std).
-ZHANG_ROTATION_MRAD = {"before": (5.9, 6.6, 0.4), "after": (0.6, 0.8, 0.1)}
+from pincal.simulation.papers import ZHANG_NOISE, ZHANG_POSITION_MM, ZHANG_ROTATION_MRAD, zhang_truth
 
 
 def test_gao2013_distance_calibration_cross_validated() -> None:
@@ -55,7 +50,9 @@ def zhang() -> pincal.Calibration:
     robot = pincal.load_robot("zu3")
     truth = zhang_truth(robot, seed=0)
     assert np.count_nonzero(truth.x) == 5 * robot.n_joints - len(truth.model.held)
-    _, fit, test = pincal.simulate(robot, 50, 100, seed=0, noise=2e-5, rot_noise=1.5e-4, truth=truth)
+    _, fit, test = pincal.simulate(
+        robot, 50, 100, seed=0, noise=ZHANG_NOISE[0], rot_noise=ZHANG_NOISE[1], truth=truth
+    )
     return pincal.calibrate(
         robot,
         fit,

@@ -25,7 +25,7 @@ import pytest
 import pincal
 import pincal.tool.tcp
 from pincal.cli import main
-from pincal.simulation.papers import XIONG_2012_POSES
+from pincal.simulation.papers import XIONG_2012_POSES, XIONG_2012_ROTATION, XIONG_2012_TCP_MM
 from pincal.tool.tcp import calibrate_tool
 
 #: Table 1 of Xiong 2012: flange poses x, y, z [mm], a, b, c [deg].
@@ -35,8 +35,7 @@ PAPER_HEADER = ("X_mm", "Y_mm", "Z_mm", "A_deg", "B_deg", "C_deg")
 #: The contract's column names for Euler poses.
 EULER_HEADER = ("x", "y", "z", "a", "b", "c")
 #: The paper's result: TCP [mm] and flange_R_tool as printed (3 decimals).
-PAPER_TCP = np.array([119.62, -0.32, 351.90])
-PAPER_ROTATION = np.array([[0.584, 0.0, 0.812], [0.0, 1.0, 0.0], [-0.812, 0.0, 0.584]])
+PAPER_TCP, PAPER_ROTATION = XIONG_2012_TCP_MM, XIONG_2012_ROTATION
 #: Flange orientation with the flange's +Z pointing down (tool pointing at the floor).
 TOOL_DOWN = np.diag([1.0, -1.0, -1.0])
 
