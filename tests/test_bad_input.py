@@ -1173,3 +1173,13 @@ def test_mesh_paths_outside_the_urdf_folder_are_not_opened(
     for reference in references:
         assert f'filename="{reference}"' in written
     assert "root:" not in written
+
+
+def test_a_column_hint_speaks_of_units_only_for_a_unit_in_the_name() -> None:
+    """``x_mm``, ``y [mm]``, ``a(deg)`` carry a unit; a name that merely ends in the letter m
+    (``elbow_joint_custom``) is a misspelling, and the hint says nothing of units."""
+    from pincal.data.csv_table import misspelt
+
+    assert "units=mm" in misspelt(["x", "y", "a"], ["x_mm", "y [mm]", "a(deg)"])
+    hint = misspelt(["elbow_joint"], ["elbow_joint_custom"])
+    assert "'elbow_joint_custom' for elbow_joint?" in hint and "unit" not in hint

@@ -167,8 +167,9 @@ def read_columns(
     return np.concatenate(parsed) if len(parsed) > 1 else parsed[0], texts
 
 
-#: A unit written into a column's name: ``x_mm``, ``X [mm]``, ``y(m)``, ``a_deg``.
-_UNIT_SUFFIX = re.compile(r"[\s_]*[(\[]?\s*(mm|m|deg|rad)\s*[)\]]?$", re.IGNORECASE)
+#: A unit written into a column's name after a separator or in brackets: ``x_mm``, ``X [mm]``,
+#: ``y(m)``, ``a_deg`` (not the last letter of a word: ``bottom``, ``custom``).
+_UNIT_SUFFIX = re.compile(r"(?:[\s_]+[(\[]?|[(\[])\s*(mm|m|deg|rad)\s*[)\]]?$", re.IGNORECASE)
 
 
 def misspelt(wanted: Sequence[str], columns: Sequence[str]) -> str:
