@@ -30,7 +30,7 @@ import numpy as np
 import pinocchio as pin
 
 sys.path.insert(0, str(Path(__file__).parent))
-from markdown_page import command_line, table, write_page  # noqa: E402
+from markdown_page import publish, table  # noqa: E402
 
 import pincal  # noqa: E402
 from pincal.simulation.papers import (  # noqa: E402
@@ -120,10 +120,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--markdown", type=Path, help="write the results page's figures here")
     args = parser.parse_args(argv)
     text = zhang() + "\n\n" + xiong()
-    print(text)
-    if args.markdown is not None:
-        command = command_line("papers.py", sys.argv[1:] if argv is None else argv, {})
-        write_page(args.markdown, command, [text])
+    publish("papers.py", argv, text, (), None, args.markdown)
 
 
 if __name__ == "__main__":

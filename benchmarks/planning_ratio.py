@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
-from markdown_page import command_line, table, write_page  # noqa: E402
+from markdown_page import publish, table  # noqa: E402
 
 import pincal  # noqa: E402
 from pincal.planning.candidates import candidate_poses  # noqa: E402
@@ -286,10 +286,7 @@ def main(argv: list[str] | None = None) -> None:
             sections += workspace(robot, sizes, range(args.seeds), args.draws)
     sections.append(false_alarms() + " " + refused())
     text = "\n\n".join(sections)
-    print(text)
-    if args.markdown is not None:
-        command = command_line("planning_ratio.py", sys.argv[1:] if argv is None else argv, {})
-        write_page(args.markdown, command, [text])
+    publish("planning_ratio.py", argv, text, (), None, args.markdown)
 
 
 if __name__ == "__main__":
