@@ -16,9 +16,10 @@ nominal geometry (with its fitted registration and tool: no worse than the URDF 
 and says so; ``force_fit=True`` (``--force-fit``) exports the fit anyway.
 
 A fit that passes is then checked across the joint limits (:mod:`pincal.identify.extrapolation`):
-unless it is expected to beat the nominal model outside the poses it was fitted on (by two
-standard deviations of that expectation), the nominal geometry is exported in the same way
-(unless ``force_fit``).
+unless it is expected to beat the nominal model outside the poses it was fitted on (by
+:data:`~pincal.identify.validity.Z_SPREAD` standard deviations of that expectation, for distance
+data :data:`~pincal.identify.validity.Z_SPREAD_PAIRS`), the nominal geometry is exported in the
+same way (unless ``force_fit``).
 """
 
 from __future__ import annotations

@@ -151,6 +151,42 @@ def carried_to_points(problem: Problem, jac: np.ndarray) -> np.ndarray:
     return out.reshape(3 * len(points), jac.shape[1])
 
 
+#: Above this many measured points, :func:`whitened_pair_terms` is not formed (its eigenproblem
+#: grows as the cube of the points): the pairs are then counted by their effective number.
+WHITENED_POINTS = 400
+
+
+def points_gram(problem: Problem) -> np.ndarray:
+    """``AᵀA`` (3N, 3N) for the map ``A`` (pairs, 3N) from noise on the measured points to the
+    pairs' distance rows (:func:`carried_to_points`)."""
+    pairs, n = problem.pairs, len(problem.data)
+    outer = np.einsum("pi,pj->pij", *(2 * [pair_directions(problem.data.points, pairs)]))
+    gram = np.zeros((n, n, 3, 3))
+    for a, b, sign in ((0, 0, 1.0), (1, 1, 1.0), (0, 1, -1.0), (1, 0, -1.0)):
+        np.add.at(gram, (pairs[:, a], pairs[:, b]), sign * outer)
+    return gram.transpose(0, 2, 1, 3).reshape(3 * n, 3 * n)
+
+
+def whitened_pair_terms(
+    problem: Problem, theta: np.ndarray, free: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, float, int] | None:
+    """The normal terms of distance data whitened (generalised least squares): ``JᵀWJ``,
+    ``JᵀWr``, ``rᵀWr`` and the rank of ``W = (A Aᵀ)⁺``, the pairs' rows weighted by the inverse
+    of their covariance under equal noise on every axis of every measured point (``A`` as in
+    :func:`carried_to_points`; ``W = A (AᵀA)⁺² Aᵀ``, formed in the 3N coordinates of the points);
+    the pairs then count for the coordinates they come from (at most ``3N - 6``: a rigid motion
+    of every point changes no distance), not as N(N-1)/2 independent rows. The unit of ``r``
+    after whitening is the noise per axis. None above :data:`WHITENED_POINTS` points."""
+    if len(problem.data) > WHITENED_POINTS:
+        return None
+    values, vectors = np.linalg.eigh(points_gram(problem))
+    kept = values > 1e-9 * max(float(values[-1]), 1e-300)
+    whiten = vectors[:, kept].T / values[kept, None]  # Λ⁻¹ Vᵀ: (rank, 3N)
+    jac = whiten @ carried_to_points(problem, problem.jacobian(theta, free))
+    res = whiten @ carried_to_points(problem, problem.residuals(theta)[:, None])[:, 0]
+    return jac.T @ jac, jac.T @ res, float(res @ res), int(kept.sum())
+
+
 def pair_std(
     problem: Problem, scale: np.ndarray, weight: float, theta: np.ndarray, free: np.ndarray
 ) -> np.ndarray:
