@@ -20,6 +20,7 @@ from pincal.identify.measurements import Problem
 from pincal.identify.prior import WEIGHTS
 from pincal.identify.solver import set_up
 from pincal.identify.uncertainty import carried_to_points, whitened_pair_terms
+from pincal.identify.validity import Z_SPREAD, Z_SPREAD_PAIRS
 
 NOISE = 5e-5  # per axis [m]
 NARROW = 0.47  # margin of each range left out at both ends: poses in the central 6 %
@@ -104,6 +105,7 @@ def test_a_fit_of_the_pairs_noise_is_refused_across_the_limits() -> None:
     assert forced.test_after.rms_mm > WORSE * forced.test_before.rms_mm, "the distances are worse"
     assert default.guard is not None and default.guard.extrapolation is not None
     assert not default.guard.extrapolation.holds and not default.guard.kept_fit
+    assert default.guard.extrapolation.z_min == Z_SPREAD_PAIRS < Z_SPREAD
     np.testing.assert_array_equal(default.theta, default.nominal_theta)
 
 
@@ -178,6 +180,7 @@ def test_the_report_says_what_was_refused_and_where_the_data_are() -> None:
     report = pincal.report_dict(default, fit, new)
     assert report["guard"]["exported"] == "nominal"
     assert report["guard"]["extrapolation"]["holds"] is False
+    assert report["guard"]["extrapolation"]["threshold_sd"] == Z_SPREAD
     region = report["validity_region"]
     q = fit.q
     for j, entry in enumerate(region["joints"]):
