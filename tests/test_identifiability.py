@@ -299,3 +299,26 @@ def test_a_calibration_loads_no_scipy_linalg() -> None:
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False", out.stdout
+
+
+# --- why poses that vary every joint still lose parameters ---------------------------------------
+def _alike_poses(robot: pincal.Robot, n: int, spread_rad: float) -> pincal.Dataset:
+    """``n`` poses within ``spread_rad`` of one configuration, every joint moving, measured exactly."""
+    rng = np.random.default_rng(3)
+    centre = robot.random_configurations(1, rng, margin=0.2)[0]
+    q = centre + rng.uniform(-spread_rad, spread_rad, (n, robot.n_joints))
+    truth, _, _ = pincal.simulate(robot, n_fit=2, n_test=0, seed=0)
+    return truth.measure(q, 0.0)
+
+
+@pytest.mark.parametrize(
+    ("poses", "cause"), [(12, "fewer than 2 per unknown"), (80, "do not vary the joints")]
+)
+def test_the_refusal_says_whether_poses_are_too_few_or_too_alike(get_robot, poses: int, cause: str) -> None:
+    """Poses close together lose parameters whatever their count; the message puts it down to
+    the count of poses when they give fewer than 2 equations per unknown, else to their spread."""
+    robot = get_robot("ur5")
+    with pytest.raises(pincal.IdentifiabilityError) as err:
+        pincal.calibrate(robot, _alike_poses(robot, poses, 0.005), "placements")
+    assert cause in str(err.value)
+    assert "pincal plan" in str(err.value) if poses == 12 else "pincal plan" not in str(err.value)

@@ -177,6 +177,11 @@ def lost_parameters(
     return rank_ref, [names[cand[keep[k]]] for k in order if share[k] > 0.2 * share[order[0]]]
 
 
+#: Fewer residual rows than this many times the unknowns varied poses identify: the data's
+#: blind directions are put down to the count of poses, not to their spread.
+FEW_ROWS = 2
+
+
 def check_rank(
     problem: Problem,
     theta: np.ndarray,
@@ -206,6 +211,11 @@ def check_rank(
         cause = "all the poses are alike (no joint moves)"
     elif still:
         cause = f"joint(s) {', '.join(still)} never move"
+    elif len(jacobian) < FEW_ROWS * rank:
+        cause = (
+            f"{len(data)} poses give {len(jacobian)} equations, fewer than {FEW_ROWS} per unknown: too few "
+            "to tell every correction apart (measure more poses; pincal plan ROBOT N chooses them)"
+        )
     else:
         cause = f"{len(data)} poses do not vary the joints enough"
     names = ", ".join(lost[:8]) + (f" and {len(lost) - 8} more" if len(lost) > 8 else "")
