@@ -21,13 +21,20 @@ poses more than 5 % above the nominal model's (registration and tool fitted).
 ``--measure distance`` fits the distances between every two fitted poses (no registration) and
 scores the distances between every two new poses.
 
+``--simulator audit`` draws the sessions with the Pinocchio-only simulator of
+``benchmarks/verdict_audit.py`` (through ``guard_rates.Simulators.audit_truth``) instead of
+pincal's own (``own``, the default): ``exact`` is the URDF with the audit's registration and tool
+point, ``perturbed`` is ``verdict_audit.Truth.draw``; the same ranges of fitted poses, new poses
+uniform over the whole range. Its points are positions: ``position`` and ``distance`` measures
+only.
+
 The check's cost (``--cost K``): ``K`` default ``pincal calibrate`` runs on 100 simulated poses
 (:func:`pincal.simulate`), the time spent in the check over the run's.
 
 Usage::
 
     python benchmarks/extrapolation.py [--sessions 100] [--quick] [--sigma 0.05] [--cost 5]
-        [--measure position|pose|distance]
+        [--measure position|pose|distance] [--simulator own|audit]
         [--json FILE] [--markdown FILE]
 """
 
@@ -41,10 +48,12 @@ import sys
 import tempfile
 import time
 from dataclasses import asdict, dataclass, replace
+from functools import cache
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from guard_rates import Simulators
 from markdown_page import command_line, table, write_page
 
 import pincal
@@ -72,6 +81,7 @@ class Session:
     seconds: float
     whole_gain_sd_mm2: float | None = None
     measure: str = "position"
+    simulator: str = "own"
 
     @property
     def before(self) -> bool:
@@ -84,17 +94,25 @@ class Session:
         return self.guard and self.holds
 
 
-def run(where: str, truth: str, seed: int, sigma: float, measure: str = "position") -> Session:
-    """One session (``sigma`` in metres, and radians per axis of orientation for pose data)."""
-    robot = pincal.load_robot("ur5")
-    true = pincal.random_truth(robot, seed, tool_distance=(0.05, 0.05))
-    if truth == "exact":
-        true = replace(true, x=np.zeros_like(true.x))
-    rng = np.random.default_rng([seed, N_FIT, 1])
-    q_fit = robot.random_configurations(N_FIT, rng, MARGINS[where])
-    q_new = robot.random_configurations(N_NEW, rng, 0.0)
-    turn = sigma if measure == "pose" else None
-    fit, new = (true.measure(q, sigma, turn, seed=seed + k) for q, k in ((q_fit, 7), (q_new, 8)))
+@cache
+def simulators() -> Simulators:
+    """``guard_rates``' simulators, made once per process (before the workers fork: inherited)."""
+    return Simulators()
+
+
+def run(
+    where: str, truth: str, seed: int, sigma: float, measure: str = "position", simulator: str = "own"
+) -> Session:
+    """One session (``sigma`` in metres, and radians per axis of orientation for pose data), drawn
+    by pincal's simulator (``own``) or ``verdict_audit``'s (``audit``: positions only)."""
+    if simulator == "audit":
+        if measure == "pose":
+            raise ValueError("the audit simulator measures positions only")
+        robot = simulators().robot
+        fit, new = simulators().audit_truth(truth, N_FIT, seed, sigma, MARGINS[where])
+    else:
+        robot = pincal.load_robot("ur5")
+        fit, new = _own_session(robot, where, truth, seed, sigma, measure)
     start = time.perf_counter()
     forced = pincal.Pull(force_fit=True)
     cal = pincal.calibrate(robot, fit, measure=measure, params="auto", test=new, pull=forced)
@@ -106,7 +124,22 @@ def run(where: str, truth: str, seed: int, sigma: float, measure: str = "positio
     ratio = cal.test_after.rms_mm / cal.test_before.rms_mm
     sd = None if beyond is None else beyond.whole_gain_sd_mm2
     verdicts = (cal.guard.reliable, cal.guard.holds)
-    return Session(where, truth, seed, *verdicts, ratio, whole, own, seconds, sd, measure)
+    return Session(where, truth, seed, *verdicts, ratio, whole, own, seconds, sd, measure, simulator)
+
+
+def _own_session(
+    robot: pincal.Robot, where: str, truth: str, seed: int, sigma: float, measure: str
+) -> tuple[pincal.Dataset, pincal.Dataset]:
+    """The fitted and the new poses of a session drawn by pincal's simulator."""
+    true = pincal.random_truth(robot, seed, tool_distance=(0.05, 0.05))
+    if truth == "exact":
+        true = replace(true, x=np.zeros_like(true.x))
+    rng = np.random.default_rng([seed, N_FIT, 1])
+    q_fit = robot.random_configurations(N_FIT, rng, MARGINS[where])
+    q_new = robot.random_configurations(N_NEW, rng, 0.0)
+    turn = sigma if measure == "pose" else None
+    fit, new = (true.measure(q, sigma, turn, seed=seed + k) for q, k in ((q_fit, 7), (q_new, 8)))
+    return fit, new
 
 
 def _rule(group: list[Session], rule: str) -> list[object]:
@@ -229,15 +262,22 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--sigma", type=float, default=0.05, help="noise per axis [mm]")
     parser.add_argument("--cost", type=int, default=5, help="runs of the cost measurement (0: none)")
     parser.add_argument("--measure", default="position", choices=("position", "pose", "distance"))
+    parser.add_argument(
+        "--simulator", default="own", choices=("own", "audit"), help="audit: verdict_audit.py's"
+    )
     parser.add_argument("--json")
     parser.add_argument("--markdown")
     args = parser.parse_args(argv)
+    if args.simulator == "audit" and args.measure == "pose":
+        parser.error("--simulator audit simulates positions only: --measure position or distance")
+    if args.simulator == "audit":
+        simulators()  # made before the workers fork
     n = 20 if args.quick else args.sessions
     seeds = range(args.first_seed, args.first_seed + n)
     tasks = [(where, truth, seed) for where, truth in GROUPS for seed in seeds]
 
     def task(k: int) -> Session:
-        return run(*tasks[k], args.sigma * 1e-3, args.measure)
+        return run(*tasks[k], args.sigma * 1e-3, args.measure, args.simulator)
 
     start = time.perf_counter()
     sessions = parallel_map(task, len(tasks))

@@ -104,18 +104,25 @@ class Simulators:
         q_new = self.robot.random_configurations(N_NEW, rng, 0.0)
         return true.measure(q_fit, sigma, seed=seed + 7), true.measure(q_new, sigma, seed=seed + 8)
 
-    def audit_truth(self, truth: str, n: int, seed: int, sigma: float) -> tuple[Dataset, Dataset]:
-        """``verdict_audit``'s simulator (Pinocchio only)."""
+    def audit_truth(
+        self, truth: str, n: int, seed: int, sigma: float, margin: float | None = None
+    ) -> tuple[Dataset, Dataset]:
+        """``verdict_audit``'s simulator (Pinocchio only); the fitted poses leave out ``margin`` of
+        each joint's range at both ends (None: ``verdict_audit.Robot.sample``'s 5 %)."""
         rng = np.random.default_rng([seed, n, 2])
         drawn = Truth.draw(self.audit, rng)
         if truth == "exact":
             drawn = Truth(pin.Model(self.audit.model), np.zeros(self.audit.model.nq), *_rest(drawn))
         lo, hi = self.audit.model.lowerPositionLimit, self.audit.model.upperPositionLimit
-        q_fit = self.audit.sample(rng, n)
+        if margin is None:
+            q_fit = self.audit.sample(rng, n)
+        else:
+            span = margin * (hi - lo)
+            q_fit = rng.uniform(lo + span, hi - span, size=(n, self.audit.model.nq))
         q_new = rng.uniform(lo, hi, size=(N_NEW, self.audit.model.nq))
-        return self._measured(drawn, q_fit, sigma, rng), self._measured(drawn, q_new, sigma, rng)
+        return self.measured(drawn, q_fit, sigma, rng), self.measured(drawn, q_new, sigma, rng)
 
-    def _measured(self, truth: Truth, q: np.ndarray, sigma: float, rng: np.random.Generator) -> Dataset:
+    def measured(self, truth: Truth, q: np.ndarray, sigma: float, rng: np.random.Generator) -> Dataset:
         points = truth.points(q + truth.offsets) + rng.normal(0.0, sigma, (len(q), 3))
         return Dataset(self.robot.joint_names, q[:, self.order], points)
 

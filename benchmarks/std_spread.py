@@ -2,7 +2,9 @@
 measurement kind, the pull off (a weight of 1e-9 per natural unit).
 
 One UR5 truth (random joint-origin errors, instrument and tool), fixed poses, ``--draws`` draws
-of the noise (0.05 mm per axis; 0.2 mrad per axis on orientations for pose data). Each draw is
+of the noise (0.05 mm per axis; 0.2 mrad per axis on orientations for pose data), on pincal's
+simulator and on the Pinocchio-only one of ``verdict_audit.py`` (positions and the distances
+between them; its points have no orientation). Each draw is
 fitted on the identifiable placement parameters; the reported standard deviation of each
 parameter (RMS over the draws) is divided by the spread of its estimates. A ratio of 1 is an
 honest figure; the target is within 20 % (0.8 to 1.25) for the median and for every
@@ -17,31 +19,62 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from guard_rates import Simulators
 from markdown_page import command_line, table, write_page
+from verdict_audit import Truth
 
 import pincal
 from pincal.identify.solver import identifiable_set, register, set_up, solve
 from pincal.identify.uncertainty import posterior_std
 
-#: Kinds and their pose counts.
-CASES = (("position", 25), ("pose", 20), ("distance", 20))
+#: Simulators, kinds and their pose counts (the audit's simulator measures positions only).
+CASES = (
+    ("own", "position", 25),
+    ("own", "pose", 20),
+    ("own", "distance", 20),
+    ("audit", "position", 25),
+    ("audit", "distance", 20),
+)
+#: Noise per axis [m].
+NOISE = 5e-5
 
 
-def ratios(measure: str, n: int, draws: int, first_seed: int = 1000) -> np.ndarray:
-    """Per identifiable placement parameter: reported std (RMS over the draws) / spread of the
-    estimates over the draws (noise seeds ``first_seed`` onwards; ``tests/test_std_spread.py``
-    checks the same on fewer draws)."""
-    robot = pincal.load_robot("ur5")
+Draws = Callable[[int], pincal.Dataset]
+
+
+def own_draws(robot: pincal.Robot, measure: str, n: int) -> Draws:
+    """Noise draw ``seed`` of ``n`` fixed poses of one truth of pincal's simulator."""
     rot = 2e-4 if measure == "pose" else None
     truth, _, _ = pincal.simulate(robot, n_fit=n, n_test=1, seed=2, rot_noise=rot)
     q = robot.random_configurations(n, np.random.default_rng(5), 0.05)
+    return lambda seed: truth.measure(q, NOISE, rot, seed=seed)
+
+
+def audit_draws(measure: str, n: int) -> Draws:
+    """The same of one truth of ``verdict_audit.py``'s simulator (Pinocchio only; positions)."""
+    if measure == "pose":
+        raise ValueError("the audit simulator measures positions only")
+    sims = Simulators()
+    rng = np.random.default_rng(2)
+    truth = Truth.draw(sims.audit, rng)
+    q = sims.audit.sample(rng, n)
+    return lambda seed: sims.measured(truth, q, NOISE, np.random.default_rng(seed))
+
+
+def ratios(measure: str, n: int, draws: int, first_seed: int = 1000, simulator: str = "own") -> np.ndarray:
+    """Per identifiable placement parameter: reported std (RMS over the draws) / spread of the
+    estimates over the draws (noise seeds ``first_seed`` onwards; ``tests/test_std_spread.py``
+    checks the same on fewer draws), on pincal's simulator (``own``) or the audit's (``audit``)."""
+    robot = pincal.load_robot("ur5")
+    measured = own_draws(robot, measure, n) if simulator == "own" else audit_draws(measure, n)
     estimates, stds, free = [], [], None
     for draw in range(draws):
-        data = truth.measure(q, 5e-5, rot, seed=first_seed + draw)
+        data = measured(first_seed + draw)
         setup = replace(set_up(robot, data, "placements", measure), prior_weight=1e-9)
         nominal = register(setup)
         if free is None:
@@ -64,12 +97,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--markdown", type=Path)
     args = parser.parse_args(argv)
     rows: list[list[object]] = []
-    for measure, n in CASES:
-        found = ratios(measure, n, args.draws)
+    for simulator, measure, n in CASES:
+        found = ratios(measure, n, args.draws, simulator=simulator)
         within = "yes" if 0.8 <= np.median(found) <= 1.25 else "NO"
         every = "yes" if np.all((found >= 0.8) & (found <= 1.25)) else "NO"
         rows.append(
             [
+                simulator,
                 measure,
                 n,
                 args.draws,
@@ -82,6 +116,7 @@ def main(argv: list[str] | None = None) -> int:
             ]
         )
     header = (
+        "simulator",
         "measure",
         "poses",
         "draws",
