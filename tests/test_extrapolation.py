@@ -15,6 +15,8 @@ import pytest
 
 import pincal
 from pincal.data.dataset import Dataset
+from pincal.identify import extrapolation, uncertainty
+from pincal.identify.chunked import normal_terms
 from pincal.identify.extrapolation import Posterior, expected_gain
 from pincal.identify.measurements import Problem
 from pincal.identify.prior import WEIGHTS
@@ -224,3 +226,19 @@ def test_pose_data_count_the_orientation_across_the_limits() -> None:
     weight = problem.measurement.rotation_weight  # [m/rad]
     assert gain == pytest.approx((weight * 1e-3) ** 2, rel=1e-6)  # the rotation rows' whole gain
     assert spread == 0.0
+
+
+def test_above_the_whitened_size_the_pairs_count_by_their_effective_number(monkeypatch) -> None:
+    """Past :data:`WHITENED_POINTS` the posterior's terms are the plain ones with every row scaled
+    by ``n_eff / n``: the pairs count for at most ``3N - 6`` rows."""
+    problem, theta = _problem("distance")
+    free = np.ones(problem.n_params, dtype=bool)
+    plain = normal_terms(problem, theta, free)
+    monkeypatch.setattr(uncertainty, "WHITENED_POINTS", 0)
+    gram, grad, rr, rows = extrapolation._terms(problem, theta, free)
+    counted = 3 * len(problem.data) - 6
+    assert plain[3] > counted == rows
+    scale = counted / plain[3]
+    np.testing.assert_allclose(gram, scale * plain[0])
+    np.testing.assert_allclose(grad, scale * plain[1])
+    assert rr == pytest.approx(scale * plain[2])

@@ -45,7 +45,7 @@ import numpy as np
 
 from pincal.identify.chunked import normal_terms
 from pincal.identify.measurements import Problem
-from pincal.identify.prior import WEIGHTS, evidence_curve, pulled
+from pincal.identify.prior import WEIGHTS, counted_rows, evidence_curve, pulled
 from pincal.identify.solver import Setup
 from pincal.identify.uncertainty import whitened_pair_terms
 from pincal.identify.validity import Z_SPREAD, Z_SPREAD_PAIRS, Extrapolation
@@ -137,9 +137,19 @@ def _terms(
 ) -> tuple[np.ndarray, np.ndarray, float, int]:
     """The normal terms the posterior is made of: for distance data whitened (their pairs share
     the noise of their points: counted as independent rows, the posterior followed the noise and
-    kept fits of pure noise 13-24 % worse than the nominal model across the limits), else plain."""
-    whitened = whitened_pair_terms(problem, nominal, every) if problem.measurement.measure.by_pairs else None
-    return normal_terms(problem, nominal, every) if whitened is None else whitened
+    kept fits of pure noise 13-24 % worse than the nominal model across the limits); above
+    :data:`~pincal.identify.uncertainty.WHITENED_POINTS` points, every row scaled by
+    ``c = n_eff / n`` (:func:`pincal.identify.prior.counted_rows`: the effective-number
+    approximation of whitening); else plain."""
+    if not problem.measurement.measure.by_pairs:
+        return normal_terms(problem, nominal, every)
+    whitened = whitened_pair_terms(problem, nominal, every)
+    if whitened is not None:
+        return whitened
+    gram, grad, rr, n_rows = normal_terms(problem, nominal, every)
+    counted = counted_rows(problem, n_rows)
+    c = counted / max(n_rows, 1)
+    return c * gram, c * grad, c * rr, counted
 
 
 def expected_gain(
