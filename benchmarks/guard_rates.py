@@ -13,17 +13,18 @@ Pinocchio-only simulator of ``benchmarks/verdict_audit.py``, which never calls p
 its points).
 
 Each session runs ``pincal.calibrate(robot, fit, params="auto", pull=Pull(force_fit=True))``
-(``--params all``: every parameter; ``--measure distance``: the points' pairwise distances)
-once: the fit, its guard ``z`` and the threshold are those of a normal call (``force_fit`` only
-makes the fit the exported model, so its error on the new poses is known whatever the guard
-says). ``before`` is the fixed threshold (``z > 2``); ``after`` the null of selection + guard
-(``z > z_min``, :mod:`pincal.identify.guard_null`; with given parameters, the null of the guard
-alone for distance data, the fixed threshold for positions).
+(``--params all``: every parameter; ``--measure distance``: the points' pairwise distances;
+``--measure pose``: the tool frame's orientation too, ``--sigma`` mrad per axis, on pincal's
+simulator only) once: the fit, its guard ``z`` and the threshold are those of a normal call
+(``force_fit`` only makes the fit the exported model, so its error on the new poses is known
+whatever the guard says). ``before`` is the fixed threshold (``z > 2``); ``after`` the null of
+selection + guard (``z > z_min``, :mod:`pincal.identify.guard_null`; with given parameters, the
+null of the guard alone for distance data, the fixed threshold for positions and poses).
 
 Usage::
 
     python benchmarks/guard_rates.py [--sessions 100] [--poses 15 30] [--sigma 0.05]
-        [--truths exact perturbed] [--simulators own audit] [--measure position|distance]
+        [--truths exact perturbed] [--simulators own audit] [--measure position|pose|distance]
         [--params auto|all] [--json FILE] [--markdown FILE]
         [--load JSON ...] (with --sessions 0: only the table of saved sessions)
 """
@@ -94,15 +95,19 @@ class Simulators:
         order = [self.audit.joints.index(name) for name in self.robot.joint_names]
         self.order = np.array(order)
 
-    def own(self, truth: str, n: int, seed: int, sigma: float) -> tuple[Dataset, Dataset]:
-        """pincal's simulator: the URDF (``exact``) or a perturbed robot."""
+    def own(
+        self, truth: str, n: int, seed: int, sigma: float, turn: float | None = None
+    ) -> tuple[Dataset, Dataset]:
+        """pincal's simulator: the URDF (``exact``) or a perturbed robot; ``turn``: the tool
+        frame's orientation measured too, with that noise per axis [rad]."""
         true = random_truth(self.robot, seed, tool_distance=(0.05, 0.05))
         if truth == "exact":
             true = replace(true, x=np.zeros_like(true.x))
         rng = np.random.default_rng([seed, n, 1])
         q_fit = self.robot.random_configurations(n, rng, 0.05)
         q_new = self.robot.random_configurations(N_NEW, rng, 0.0)
-        return true.measure(q_fit, sigma, seed=seed + 7), true.measure(q_new, sigma, seed=seed + 8)
+        fit, new = (true.measure(q, sigma, turn, seed=seed + k) for q, k in ((q_fit, 7), (q_new, 8)))
+        return fit, new
 
     def audit_truth(
         self, truth: str, n: int, seed: int, sigma: float, margin: float | None = None
@@ -142,8 +147,10 @@ def run(
     calibrated as ``measure`` data (``distance``: every pair of them) on the parameters ``params``
     (``auto`` or ``all``)."""
     simulator, truth, n, seed = key
-    make = sims.own if simulator == "own" else sims.audit_truth
-    fit, new = make(truth, n, seed, sigma)
+    if simulator == "own":
+        fit, new = sims.own(truth, n, seed, sigma, sigma if measure == "pose" else None)
+    else:
+        fit, new = sims.audit_truth(truth, n, seed, sigma)
     start = time.perf_counter()
     wanted = "auto" if params == "auto" else None
     force = pincal.Pull(force_fit=True)
@@ -222,7 +229,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--sigma", type=float, default=0.05, help="noise per axis [mm]")
     parser.add_argument("--truths", nargs="+", default=["exact", "perturbed"])
     parser.add_argument("--simulators", nargs="+", default=["own", "audit"])
-    parser.add_argument("--measure", default="position", choices=["position", "distance"])
+    parser.add_argument("--measure", default="position", choices=["position", "pose", "distance"])
     parser.add_argument("--params", default="auto", choices=["auto", "all"], help="chosen, or every one")
     parser.add_argument("--jobs", type=int, default=2, help="sessions run at once")
     parser.add_argument("--json", type=Path)
@@ -232,6 +239,8 @@ def main(argv: list[str] | None = None) -> int:
         "--load", type=Path, nargs="*", default=[], help="saved: --json files or printed lines (.log)"
     )
     args = parser.parse_args(argv)
+    if args.measure == "pose" and "audit" in args.simulators and args.sessions:
+        parser.error("the audit simulator measures positions only: --measure pose needs --simulators own")
     sessions = [s for path in args.load for s in load(path)]
     sims = Simulators()
     keys = [
