@@ -108,6 +108,7 @@ def test_a_fit_of_the_pairs_noise_is_refused_across_the_limits() -> None:
     assert default.guard is not None and default.guard.extrapolation is not None
     assert not default.guard.extrapolation.holds and not default.guard.kept_fit
     assert default.guard.extrapolation.z_min == Z_SPREAD_PAIRS < Z_SPREAD
+    assert default.guard.extrapolation.text().endswith("outside the data by 1 standard deviation")
     np.testing.assert_array_equal(default.theta, default.nominal_theta)
 
 

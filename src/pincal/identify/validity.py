@@ -136,7 +136,7 @@ class Extrapolation:
             return said
         return (
             f"{said}: the fit is not expected to beat the nominal model outside the data by "
-            f"{self.z_min:g} standard deviations"
+            f"{self.z_min:g} standard deviation{'' if self.z_min == 1 else 's'}"
         )
 
     def to_dict(self) -> dict[str, Any]:
