@@ -184,8 +184,9 @@ def whitened_pair_terms(
     values, vectors = np.linalg.eigh(points_gram(problem))
     kept = values > 1e-9 * max(float(values[-1]), 1e-300)
     whiten = vectors[:, kept].T / values[kept, None]  # Λ⁻¹ Vᵀ: (rank, 3N)
-    jac = whiten @ carried_to_points(problem, problem.jacobian(theta, free))
-    res = whiten @ carried_to_points(problem, problem.residuals(theta)[:, None])[:, 0]
+    res, jac = problem.rows(theta, np.flatnonzero(free))  # one pass, both carried to the points at once
+    carried = whiten @ carried_to_points(problem, np.column_stack([jac, res]))
+    jac, res = carried[:, :-1], carried[:, -1]
     return jac.T @ jac, jac.T @ res, float(res @ res), int(kept.sum())
 
 
