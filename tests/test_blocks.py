@@ -362,3 +362,28 @@ def test_a_large_fit_reads_its_standard_deviations_from_the_pull_s_pass(
     assert large.prior is not None and large.prior.chosen_by == "evidence"
     np.testing.assert_allclose(large.std, small.std, rtol=1e-4, atol=1e-15)
     assert large.prior.weight == small.prior.weight  # type: ignore[union-attr]
+
+
+def test_a_large_problem_keeps_its_last_residuals(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Residuals asked for again at the same θ (a fit begun where a check just evaluated it) are
+    the ones made before, read-only, without a pass over the blocks; at another θ, or after the
+    problem's blocks are released, a new pass gives what every row at once gives."""
+    _tiny_blocks(monkeypatch)
+    robot = pincal.load_robot("ur5")
+    _, fit, _ = pincal.simulate(robot, n_fit=30, n_test=0, seed=4, rot_noise=5e-4)
+    problem = set_up(robot, fit, "placements", "pose").problem
+    alone = Problem(problem.model, problem.measurement, fit)
+    monkeypatch.setattr(chunked, "LARGE_POSES", 10**9)
+    whole = [alone.residuals(problem.initial_theta() + d) for d in (0.0, 1e-3)]
+    monkeypatch.setattr(chunked, "LARGE_POSES", 10)
+    passes = _poses_per_call(monkeypatch, [(chunked, "blocks")], lambda p: len(p.data))
+    first = problem.residuals(problem.initial_theta())
+    again = problem.residuals(problem.initial_theta())
+    assert again is first and not first.flags.writeable and len(passes) == 1
+    np.testing.assert_allclose(first, whole[0], rtol=RTOL, atol=1e-15)
+    np.testing.assert_allclose(
+        problem.residuals(problem.initial_theta() + 1e-3), whole[1], rtol=RTOL, atol=1e-15
+    )
+    chunked.release(problem)
+    np.testing.assert_allclose(problem.residuals(problem.initial_theta()), whole[0], rtol=RTOL, atol=1e-15)
+    assert len(passes) == 3

@@ -30,6 +30,7 @@ from pincal.cli.values import attach_vectors
 from pincal.errors import PincalError
 from pincal.files import forget_inputs
 from pincal.inputs import run_scope
+from pincal.memory import keep_freed_memory
 
 #: The parser (under its former private name, for tests that build it).
 _build_parser = build_parser
@@ -41,6 +42,7 @@ class Terminated(BaseException):
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``pincal`` command."""
+    keep_freed_memory()
     closed = _reserve_closed_channels()
     if closed[1]:  # before the run: a broken pipe later is quiet, a channel closed on purpose is said
         return _error(

@@ -91,5 +91,6 @@ class WarmStart:
 def fits_better(problem: Problem, warm: np.ndarray, nominal: np.ndarray) -> bool:
     """Whether the start ``warm`` fits ``problem``'s poses better than ``nominal`` (a fit of
     poses that determine little, its registration turned far, may not: then start cold)."""
-    at_warm, at_nominal = problem.residuals(warm), problem.residuals(nominal)
+    at_nominal = problem.residuals(nominal)  # the registration's minimum, just evaluated
+    at_warm = problem.residuals(warm)  # last: the fit begins there (a large problem keeps it)
     return bool(np.isfinite(at_warm).all() and at_warm @ at_warm < at_nominal @ at_nominal)
