@@ -79,6 +79,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections import Counter
 from collections.abc import Callable, Iterable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
@@ -851,6 +852,54 @@ def print_ratios(results: list[Result]) -> None:
         print(f"    {robot:6} {effect:8} {'  '.join(parts):44} calibrate named: {', '.join(named)}")
 
 
+def summary_rows(results: list[Result]) -> list[list[object]]:
+    """Per robot and effect: the runs, their verdicts, the causes calibrate named (how often each
+    set), whether diagnose named the same first cause, and unexplained_mm over what the final
+    model truly leaves (min-max)."""
+    groups: dict[tuple[str, str], list[Result]] = {}
+    for r in results:
+        groups.setdefault((r.case.robot, r.case.effect), []).append(r)
+    rows: list[list[object]] = []
+    for (robot, effect), rs in sorted(groups.items(), key=lambda g: (g[0][0], EFFECTS.index(g[0][1]))):
+        verdicts = Counter(str(r.verdict) for r in rs)
+        named = Counter(", ".join(_short(c) for c in r.cal_causes) or "none" for r in rs)
+        same = sum(1 for r in rs if (r.cal_causes[0] if r.cal_causes else None) == r.diag_cause)
+        ratios = [
+            r.unexplained_mm / r.left_true_mm
+            for r in rs
+            if r.unexplained_mm and r.left_true_mm is not None and r.left_true_mm > 0
+        ]
+        rows.append(
+            [
+                robot,
+                effect,
+                len(rs),
+                ", ".join(f"`{v}` {k}/{len(rs)}" for v, k in verdicts.most_common()),
+                "; ".join(f"{k} × {v}" for v, k in named.most_common()),
+                f"{same}/{len(rs)}",
+                f"{min(ratios):.2f}-{max(ratios):.2f}" if ratios else "-",
+            ]
+        )
+    return rows
+
+
+def write_markdown(path: Path, argv: list[str] | None, results: list[Result], script: str) -> None:
+    """The page of the run: the summary per robot and effect and the acceptance criteria. Its
+    writer (``markdown_page``) imports pincal for its version; the simulation above does not."""
+    from markdown_page import command_line, table, write_page
+
+    header = ["robot", "effect", "runs", "verdict", "calibrate named", "diagnose agrees", "unexpl. / left"]
+    criteria = [f"- {'PASS' if p == t else 'FAIL'} {name}: {p}/{t}" for name, p, t, _ in acceptance(results)]
+    note = (
+        "`unexpl. / left`: the verdict's `unexplained_mm` over what the final model truly leaves above "
+        "the noise (its error against the noise-free truth on the same poses, given as `--test`); "
+        "causes: `harm` a gear harmonic, `compl` a joint compliance, `scale` an encoder scale, "
+        "`lost_motion` a lost motion, each with its joint."
+    )
+    command = command_line(script, sys.argv[1:] if argv is None else argv, {})
+    write_page(path, command, [table(header, summary_rows(results)), "", note, "", *criteria])
+
+
 def build_cases(
     robots: list[str], poses: list[int], multiples: list[float], seeds: int, first_seed: int = 0
 ) -> list[Case]:
@@ -887,6 +936,7 @@ def parse_args(argv: list[str] | None, doc: str | None) -> argparse.Namespace:
     parser.add_argument("--jobs", type=int, default=1, help="cases run at once")
     parser.add_argument("--json", type=Path, help="write every result here")
     parser.add_argument("--keep", type=Path, help="keep the CSVs and JSONs in this folder")
+    parser.add_argument("--markdown", type=Path, help="also write the summary and acceptance in Markdown")
     parser.add_argument(
         "--pincal",
         default="pincal",
@@ -969,6 +1019,8 @@ def main(
             )
     if args.json:
         args.json.write_text(json.dumps([asdict(r) for r in results], indent=1))
+    if args.markdown:
+        write_markdown(args.markdown, argv, results, Path(sys.argv[0]).name)
     return 1 if failed else 0
 
 

@@ -17,6 +17,7 @@ import pincal
 import pincal.auto.choice as choice_module
 import pincal.report.outcome
 import pincal.simulation.truth
+from pincal.auto.residual import residual_verdict
 from pincal.data.directions import move_directions
 from pincal.identify.measurement import Measurement
 from pincal.identify.measurements import Problem
@@ -186,6 +187,26 @@ def test_two_hidden_effects_are_both_named_with_their_joints(get_robot) -> None:
     steps = cal.choice.steps()
     assert [s[0] for s in steps] == [e.label for e in cal.extension.parts]
     assert all(after < before for _, before, after in steps)
+
+
+def test_an_effect_outside_the_list_is_not_stacked_from_causes_on_its_joint(get_robot) -> None:
+    """sin(3q) on the Panda's joint 4 (outside the list): harmonics 1 and 2 of that joint together
+    would absorb most of it. A further cause is sought only on other joints, so at most one cause
+    is named on the joint and what it leaves stays unexplained, as with one cause."""
+    robot = get_robot("panda")
+    rng = np.random.default_rng(3)
+    truth = pincal.simulation.truth.random_truth(robot, seed=3)
+    q = robot.random_configurations(100, rng, 0.2)
+    sin3 = Extension(robot, "gear_harmonic", "panda_joint4", 3)
+    truth = pincal.simulation.truth.hide_effects(truth, [sin3], q, 0.26e-3, 3)
+    data = truth.measure(q, noise=5e-5, seed=4)
+    cal = pincal.calibrate(robot, data, extension="auto")
+    assert cal.extension is not None and cal.choice is not None
+    joints = [e.joint for e in cal.extension.parts]
+    assert joints == ["panda_joint4"]
+    for step in cal.choice.more:
+        assert all(c.extension.joint not in joints for c in step.candidates)
+    assert residual_verdict(cal, data, 5e-2).verdict == "unexplained"
 
 
 def test_rows_in_no_meaningful_order_show_no_lost_motion(get_robot) -> None:

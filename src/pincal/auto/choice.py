@@ -38,7 +38,8 @@ from pincal.kinematics.effects import AnyEffect, Effects
 
 #: Rounds of selection and diagnosis for ``extension="auto"``.
 MAX_ROUNDS = 3
-#: Causes ``extension="auto"`` names at most, each added only where it pays on held-out poses.
+#: Causes ``extension="auto"`` names at most, each added only where it pays on held-out poses,
+#: and each on a joint of its own (:func:`pincal.auto.diagnosis.diagnose_with`).
 MAX_CAUSES = 3
 #: Nested cross-validation runs by default up to this many poses (it costs K selections and fits).
 NESTED_MAX_POSES = 60
