@@ -4,11 +4,10 @@ glibc's ``malloc`` gives an allocation above its mmap threshold (128 kB, raised 
 are freed, to at most 32 MB) pages of its own, and hands them back to the kernel when it is
 freed: the next one of the same size is faulted in again, page by page, and zeroed. A large
 calibration makes and drops arrays of 10-40 MB for each block of poses in every pass over its
-rows (:mod:`pincal.identify.chunked`), so on 200,000 pose rows in one process a third of a
-minute of work spent 5-6.5 s in the kernel, 1.8-2.1 s once freed memory stays with the process
-(4 runs each, alternating; 26.5 against 31.7 s in all), and on 10⁶ pose rows with another
-process keeping a core busy 95-98 against 102-103 s; the peak memory is the same
-(``benchmarks/speed_bars.py``).
+rows (:mod:`pincal.identify.chunked`). On 200,000 pose rows in one process the command spent
+5.1-6.6 s in the kernel, 1.8-2.1 s once freed memory stays with the process (3 runs each,
+alternating: 31.7 against 26.5 s in all); on 10⁶ pose rows with another process keeping a core
+busy it took 102-103 against 95-98 s (2 runs each), its peak memory the same (1.42 GB).
 
 Only the command sets this (a library caller's process is its own); elsewhere than glibc it does
 nothing.
