@@ -114,7 +114,7 @@ def evaluate(
         _forget(block)
         res.append(r)
         jac.append(j)
-    return np.concatenate(res), (np.concatenate(jac) if cols is not None else np.empty((0, 0)))
+    return np.concatenate(res), np.concatenate(jac)
 
 
 def residuals(problem: ProblemRows, theta: np.ndarray) -> np.ndarray:
