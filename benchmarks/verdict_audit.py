@@ -809,8 +809,7 @@ def acceptance(results: list[Result]) -> list[tuple[str, int, int, list[str]]]:
     fails = []
     both = [r for r in results if r.rc_cal == 0 and r.rc_diag == 0]
     for r in both:
-        first = r.cal_causes[0] if r.cal_causes else None
-        if first != r.diag_cause:
+        if not _agree(r):
             fails.append(f"{label(r)}: calibrate {r.cal_causes or 'none'}, diagnose {r.diag_cause or 'none'}")
     skipped = len(results) - len(both)
     name = f"4. calibrate and diagnose name the same cause (runs where both exit 0; {skipped} not)"
@@ -825,13 +824,25 @@ def acceptance(results: list[Result]) -> list[tuple[str, int, int, list[str]]]:
     return out
 
 
+def _agree(r: Result) -> bool:
+    """Whether calibrate's first cause is the one diagnose named (or both named none)."""
+    return (r.cal_causes[0] if r.cal_causes else None) == r.diag_cause
+
+
+def _by_robot_and_effect(results: Iterable[Result]) -> dict[tuple[str, str], list[Result]]:
+    """The results grouped by robot and effect, in the order met."""
+    groups: dict[tuple[str, str], list[Result]] = {}
+    for r in results:
+        groups.setdefault((r.case.robot, r.case.effect), []).append(r)
+    return groups
+
+
 def print_ratios(results: list[Result]) -> None:
     """Per robot and effect, the range of unexplained_mm over the true structure RMS, over what a rigid
     model cannot absorb (rigidR) and over what rigid + the best single listed effect cannot (listR)."""
-    groups: dict[tuple[str, str], list[Result]] = {}
-    for r in results:
-        if r.case.effect != "rigid" and r.unexplained_mm is not None:
-            groups.setdefault((r.case.robot, r.case.effect), []).append(r)
+    groups = _by_robot_and_effect(
+        r for r in results if r.case.effect != "rigid" and r.unexplained_mm is not None
+    )
     print("unexplained_mm / reference, min-max over M, N, seeds (information):")
     for (robot, effect), rs in sorted(groups.items()):
         parts = []
@@ -856,14 +867,12 @@ def summary_rows(results: list[Result]) -> list[list[object]]:
     """Per robot and effect: the runs, their verdicts, the causes calibrate named (how often each
     set), whether diagnose named the same first cause, and unexplained_mm over what the final
     model truly leaves (min-max)."""
-    groups: dict[tuple[str, str], list[Result]] = {}
-    for r in results:
-        groups.setdefault((r.case.robot, r.case.effect), []).append(r)
+    groups = _by_robot_and_effect(results)
     rows: list[list[object]] = []
     for (robot, effect), rs in sorted(groups.items(), key=lambda g: (g[0][0], EFFECTS.index(g[0][1]))):
         verdicts = Counter(str(r.verdict) for r in rs)
         named = Counter(", ".join(_short(c) for c in r.cal_causes) or "none" for r in rs)
-        same = sum(1 for r in rs if (r.cal_causes[0] if r.cal_causes else None) == r.diag_cause)
+        same = sum(1 for r in rs if _agree(r))
         ratios = [
             r.unexplained_mm / r.left_true_mm
             for r in rs
